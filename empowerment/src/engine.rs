@@ -1,0 +1,357 @@
+//! The engine: one world's state space, and the questions asked of it: values, the
+//! tool-object matrix and tool selection, landscapes, traces and single queries.
+//!
+//! The matrix entry `[j, i]` is the mean of `E^h_{j,{i}}(s)` over the normal-mode states
+//! of the space, with `h = horizon_equipped` where tool j is held and
+//! `horizon_unequipped` elsewhere (WORLD.md). Tool selection for a column is its argmax,
+//! ties to the lower tool index, a column of zeros selects no tool (equation 6).
+
+use fulcrum_shared::{Mode, ObjectSet, State, World};
+use rayon::prelude::*;
+
+use crate::enumerate;
+use crate::error::EngineError;
+use crate::limits::Limits;
+use crate::propagate::{check_table, reachable_counts, Projection};
+use crate::space::StateSpace;
+
+/// Whose actions drive the channel.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ToolSel {
+    /// Tool j's subset {N, E, S, W, apply, select_j}.
+    Tool(usize),
+    /// The full action set A.
+    All,
+}
+
+impl ToolSel {
+    /// The action subset.
+    pub fn actions(&self, world: &World) -> Vec<u8> {
+        match *self {
+            ToolSel::Tool(j) => world.tool_actions(j).to_vec(),
+            ToolSel::All => (0..world.num_actions() as u8).collect(),
+        }
+    }
+
+    /// Its name (`axe`, `all`).
+    pub fn name(&self, world: &World) -> String {
+        match *self {
+            ToolSel::Tool(j) => world.tools[j].name.clone(),
+            ToolSel::All => "all".to_string(),
+        }
+    }
+
+    /// Whether this tool is held in `s` (`all` counts as never held).
+    pub fn held(&self, s: &State) -> bool {
+        matches!(*self, ToolSel::Tool(j) if s.holds(j))
+    }
+}
+
+/// How values are computed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Set propagation over the state space (fast, exact).
+    #[default]
+    Dp,
+    /// Enumerate every action sequence (the paper's method; the reference).
+    Enumerate,
+}
+
+/// The name of an object set: `tree`, `boulder+door`, `agent`.
+pub fn set_name(world: &World, set: &ObjectSet) -> String {
+    match set {
+        ObjectSet::Agent => "agent".to_string(),
+        ObjectSet::Objects(v) => v
+            .iter()
+            .map(|&i| world.objects[i].name.as_str())
+            .collect::<Vec<_>>()
+            .join("+"),
+    }
+}
+
+/// The tool-object empowerment matrix and the selection it makes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Matrix {
+    /// Row names (tools in file order).
+    pub tools: Vec<String>,
+    /// Column names.
+    pub columns: Vec<String>,
+    /// `values[j][c]`, bits.
+    pub values: Vec<Vec<f64>>,
+    /// Selected tool per column (None: every entry is zero).
+    pub selection: Vec<Option<usize>>,
+    /// Normal-mode states averaged over.
+    pub normal_states: usize,
+}
+
+/// argmax with ties to the lower index; all zero -> None.
+pub fn select(column: impl IntoIterator<Item = f64>) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for (j, v) in column.into_iter().enumerate() {
+        if v > 0.0 && best.is_none_or(|(_, b)| v > b) {
+            best = Some((j, v));
+        }
+    }
+    best.map(|(j, _)| j)
+}
+
+/// Values over the map for one inventory: `values[y][x]`, None where that state does not
+/// exist.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Landscape {
+    /// `values[y][x]`.
+    pub values: Vec<Vec<Option<f64>>>,
+}
+
+/// One step of a trace.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceStep {
+    /// The action that led here (None at t = 0).
+    pub action: Option<u8>,
+    /// The state after it.
+    pub state: State,
+    /// E at that state.
+    pub value: f64,
+}
+
+/// One world's state space and the questions asked of it.
+#[derive(Debug)]
+pub struct Engine<'w> {
+    /// The world.
+    pub world: &'w World,
+    /// Its enumerated state space.
+    pub space: StateSpace,
+    /// Memory limits for tables.
+    pub limits: Limits,
+}
+
+impl<'w> Engine<'w> {
+    /// Enumerate the world's state space.
+    pub fn new(world: &'w World, limits: Limits) -> Result<Self, EngineError> {
+        let space = StateSpace::enumerate(world, &limits)?;
+        Ok(Engine { world, space, limits })
+    }
+
+    /// Number of normal-mode states.
+    pub fn normal_states(&self) -> usize {
+        self.space.normal_ids().count()
+    }
+
+    /// `counts[k][s] = |R_{horizons[k]}(s)|` for every state.
+    pub fn counts(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        horizons: &[u32],
+        method: Method,
+    ) -> Result<Vec<Vec<u32>>, EngineError> {
+        let actions = tool.actions(self.world);
+        let hmax = horizons.iter().copied().max().unwrap_or(0);
+        match method {
+            Method::Dp => {
+                let proj = Projection::new(&self.space, set);
+                let what = format!("{} -> {}", tool.name(self.world), set_name(self.world, set));
+                check_table(&self.space, &proj, hmax, &what, &self.limits)?;
+                Ok(reachable_counts(&self.space, &proj, &actions, horizons))
+            }
+            Method::Enumerate => {
+                let ids: Vec<u32> = (0..self.space.len() as u32).collect();
+                let per = self.enumerate_counts(&ids, &actions, set, horizons)?;
+                Ok(per)
+            }
+        }
+    }
+
+    /// Enumerate counts at the given states, for each horizon.
+    fn enumerate_counts(
+        &self,
+        ids: &[u32],
+        actions: &[u8],
+        set: &ObjectSet,
+        horizons: &[u32],
+    ) -> Result<Vec<Vec<u32>>, EngineError> {
+        check_enumerable(actions.len(), horizons, ids.len())?;
+        Ok(horizons
+            .iter()
+            .map(|&h| {
+                ids.par_iter()
+                    .map(|&i| {
+                        enumerate::reachable_count(self.world, self.space.state(i), actions, set, h)
+                            as u32
+                    })
+                    .collect()
+            })
+            .collect())
+    }
+
+    /// E^h(s) in bits for every state.
+    pub fn values(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        method: Method,
+    ) -> Result<Vec<f64>, EngineError> {
+        let c = self.counts(tool, set, &[h], method)?;
+        Ok(c[0].iter().map(|&n| (n as f64).log2()).collect())
+    }
+
+    /// The matrix over every tool of the world and the given columns.
+    pub fn matrix(
+        &self,
+        columns: &[ObjectSet],
+        horizon_unequipped: u32,
+        horizon_equipped: u32,
+        method: Method,
+    ) -> Result<Matrix, EngineError> {
+        let normal: Vec<u32> = self.space.normal_ids().collect();
+        let n_tools = self.world.tools.len();
+        let pairs: Vec<(usize, usize)> = (0..n_tools)
+            .flat_map(|j| (0..columns.len()).map(move |c| (j, c)))
+            .collect();
+        let horizons = [horizon_unequipped, horizon_equipped];
+        let mut values = vec![vec![0.0; columns.len()]; n_tools];
+        // Projections depend on the column only: make each once.
+        let projs: Vec<Projection> = match method {
+            Method::Dp => columns.iter().map(|c| Projection::new(&self.space, c)).collect(),
+            Method::Enumerate => Vec::new(),
+        };
+        for &(j, c) in &pairs {
+            let tool = ToolSel::Tool(j);
+            let actions = tool.actions(self.world);
+            let counts = match method {
+                Method::Dp => {
+                    let what = format!("{} -> {}", tool.name(self.world), set_name(self.world, &columns[c]));
+                    check_table(&self.space, &projs[c], horizon_unequipped.max(horizon_equipped), &what, &self.limits)?;
+                    let all = reachable_counts(&self.space, &projs[c], &actions, &horizons);
+                    // Keep only the normal states, in `normal` order.
+                    all.into_iter()
+                        .map(|v| normal.iter().map(|&i| v[i as usize]).collect::<Vec<u32>>())
+                        .collect::<Vec<_>>()
+                }
+                Method::Enumerate => self.enumerate_counts(&normal, &actions, &columns[c], &horizons)?,
+            };
+            let sum: f64 = normal
+                .iter()
+                .enumerate()
+                .map(|(k, &i)| {
+                    let held = tool.held(self.space.state(i));
+                    (counts[held as usize][k] as f64).log2()
+                })
+                .sum();
+            values[j][c] = if normal.is_empty() { 0.0 } else { sum / normal.len() as f64 };
+        }
+        let selection = (0..columns.len())
+            .map(|c| select(values.iter().map(|row| row[c])))
+            .collect();
+        Ok(Matrix {
+            tools: self.world.tools.iter().map(|t| t.name.clone()).collect(),
+            columns: columns.iter().map(|c| set_name(self.world, c)).collect(),
+            values,
+            selection,
+            normal_states: normal.len(),
+        })
+    }
+
+    /// The state with the agent on (x, y), mode normal, inventory `holding`, every object
+    /// in its initial state.
+    pub fn landscape_state(&self, x: usize, y: usize, holding: u16) -> State {
+        let mut s = self.world.initial;
+        s.x = x as u8;
+        s.y = y as u8;
+        s.set_mode(Mode::Normal);
+        s.inventory = holding;
+        s
+    }
+
+    /// The landscape of (tool, set, h) for inventory `holding` (bit per tool).
+    pub fn landscape(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        holding: u16,
+        method: Method,
+    ) -> Result<Landscape, EngineError> {
+        let (w, hgt) = (self.world.width, self.world.height);
+        let cells: Vec<Option<u32>> = (0..w * hgt)
+            .map(|c| self.space.id(&self.landscape_state(c % w, c / w, holding)))
+            .collect();
+        let vals: Vec<Option<f64>> = match method {
+            Method::Dp => {
+                let v = self.values(tool, set, h, method)?;
+                cells.iter().map(|c| c.map(|i| v[i as usize])).collect()
+            }
+            Method::Enumerate => {
+                let ids: Vec<u32> = cells.iter().flatten().copied().collect();
+                let counts = self.enumerate_counts(&ids, &tool.actions(self.world), set, &[h])?;
+                let mut it = counts[0].iter();
+                cells
+                    .iter()
+                    .map(|c| c.map(|_| (*it.next().expect("one count per id") as f64).log2()))
+                    .collect()
+            }
+        };
+        Ok(Landscape { values: vals.chunks(w).map(|r| r.to_vec()).collect() })
+    }
+
+    /// E^h along an action sequence from the initial state (t = 0 is before any action).
+    pub fn trace(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        actions: &[u8],
+    ) -> Result<Vec<TraceStep>, EngineError> {
+        let v = self.values(tool, set, h, Method::Dp)?;
+        let mut s = self.world.initial;
+        let mut out = Vec::with_capacity(actions.len() + 1);
+        let id = |s: &State| self.space.id(s).expect("every state reached from the start is in the space");
+        out.push(TraceStep { action: None, state: s, value: v[id(&s) as usize] });
+        for &a in actions {
+            s = self.world.step(&s, a);
+            out.push(TraceStep { action: Some(a), state: s, value: v[id(&s) as usize] });
+        }
+        Ok(out)
+    }
+
+    /// The id of a state, or why it is not in the state space.
+    pub fn state_id(&self, s: &State) -> Result<u32, EngineError> {
+        self.space.id(s).ok_or_else(|| {
+            EngineError::NotInSpace(format!(
+                "the state '{}' is not reachable from the initial state of world '{}'",
+                self.world.describe(s),
+                self.world.name
+            ))
+        })
+    }
+
+    /// E^h at one state.
+    pub fn query(
+        &self,
+        s: &State,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        method: Method,
+    ) -> Result<f64, EngineError> {
+        let id = self.state_id(s)?;
+        match method {
+            Method::Dp => Ok(self.values(tool, set, h, method)?[id as usize]),
+            Method::Enumerate => {
+                check_enumerable(tool.actions(self.world).len(), &[h], 1)?;
+                Ok(enumerate::value(self.world, s, &tool.actions(self.world), set, h))
+            }
+        }
+    }
+}
+
+/// Refuse enumeration beyond about 10^11 steps.
+fn check_enumerable(actions: usize, horizons: &[u32], states: usize) -> Result<(), EngineError> {
+    let h = horizons.iter().copied().max().unwrap_or(0);
+    let per_state = (actions as f64).powi(h as i32);
+    if per_state * states.max(1) as f64 > 1e11 || h > fulcrum_shared::MAX_HORIZON {
+        return Err(EngineError::EnumerationTooLong { h, actions, states, per_state });
+    }
+    Ok(())
+}

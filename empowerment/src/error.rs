@@ -1,0 +1,57 @@
+//! The engine's errors: each names what was asked and the numbers that refuse it.
+
+use crate::limits::human_bytes;
+
+/// Why an empowerment computation was refused or failed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum EngineError {
+    /// Enumeration passed the memory limit.
+    #[error("the state space of world '{world}' has more than {states} states (about {bytes_h} at that size), over the memory limit of {limit_h}", bytes_h = human_bytes(*bytes), limit_h = human_bytes(*limit))]
+    StateSpaceTooLarge {
+        /// World name.
+        world: String,
+        /// States found when it stopped.
+        states: usize,
+        /// Estimated bytes at that point.
+        bytes: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// The set table would not fit.
+    #[error("the empowerment table for {what} needs about {bytes_h} ({states} states x {words} words x 2), over the memory limit of {limit_h}", bytes_h = human_bytes(*bytes), limit_h = human_bytes(*limit))]
+    TableTooLarge {
+        /// What was asked.
+        what: String,
+        /// States.
+        states: usize,
+        /// 64-bit words per set.
+        words: usize,
+        /// Estimated bytes.
+        bytes: usize,
+        /// The limit.
+        limit: usize,
+    },
+    /// A horizon beyond what the engine accepts.
+    #[error("horizon {h} is too large: at most {max}")]
+    HorizonTooLarge {
+        /// Asked.
+        h: u32,
+        /// Allowed.
+        max: u32,
+    },
+    /// The reference method would take too long.
+    #[error("--method enumerate at horizon {h} needs {per_state:.3e} action sequences per state ({actions}^{h}) for {states} states; use --method dp or a smaller horizon")]
+    EnumerationTooLong {
+        /// Horizon.
+        h: u32,
+        /// |A_j|.
+        actions: usize,
+        /// States asked for.
+        states: usize,
+        /// Sequences per state.
+        per_state: f64,
+    },
+    /// A state that is not in the world's state space.
+    #[error("{0}")]
+    NotInSpace(String),
+}

@@ -1,0 +1,39 @@
+//! fulcrum-empowerment: exact object empowerment over an enumerated state space.
+//!
+//! For a tool j, objects D and horizon h (WORLD.md, the paper's equations 4 and 5):
+//!
+//! ```text
+//! E^h_{j,D}(s) = log2 | { proj_D(T^h(s, a)) : a in (A^{T_j})^h } |     bits
+//! ```
+//!
+//! [`Engine`] enumerates the states once, then answers by set propagation
+//! ([`propagate`]), with the paper's sequence enumeration ([`enumerate`]) as the
+//! reference.
+//!
+//! ```
+//! use fulcrum_empowerment::{Engine, Limits, Method};
+//! use fulcrum_shared::{load_world, ObjectSet};
+//! let world = load_world("exp1-tree").unwrap();
+//! let engine = Engine::new(&world, Limits::default()).unwrap();
+//! let tree = ObjectSet::Objects(vec![world.object_index("tree").unwrap()]);
+//! let m = engine.matrix(&[tree], 8, 3, Method::Dp).unwrap();
+//! assert_eq!(m.selection[0], Some(0)); // the axe
+//! ```
+
+/// The engine: values, matrix, selection, landscapes, traces, queries.
+pub mod engine;
+/// The reference method: enumerate every action sequence.
+pub mod enumerate;
+/// Errors.
+pub mod error;
+/// Memory limits.
+pub mod limits;
+/// Set propagation: the fast exact method.
+pub mod propagate;
+/// State-space enumeration and the successor table.
+pub mod space;
+
+pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
+pub use error::EngineError;
+pub use limits::Limits;
+pub use space::StateSpace;

@@ -1,0 +1,32 @@
+//! fulcrum-shared: the tool world of `WORLD.md`, which actors step and the empowerment
+//! engine plans over.
+//!
+//! ```
+//! use fulcrum_shared::{load_world, EAST};
+//! let world = load_world("exp1-tree").unwrap();
+//! let s = world.step(&world.initial, EAST);
+//! assert_eq!((s.x, s.y), (2, 4));
+//! ```
+
+/// World files: parsing and validation with file:line:col errors.
+pub mod parse;
+/// The built-in worlds (the paper's four, and a small room).
+pub mod builtin;
+/// Episodes, task rewards and the learner's observation encoding.
+pub mod env;
+/// Random valid world files.
+pub mod generate;
+/// A fast hasher for state-keyed maps.
+pub mod hash;
+/// The packed state and its text form.
+pub mod state;
+/// The world, the rule table and the exact dynamics.
+pub mod world;
+
+pub use env::{Episode, ObsSpec, Outcome};
+pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
+pub use state::{DescribeError, Mode, State, BOULDER_DESTROYED};
+pub use world::{
+    ObjectKind, ObjectSet, Range, Rule, Task, Terrain, ToolChoice, World, APPLY, EAST, NORTH,
+    SELECT0, SOUTH, WEST,
+};

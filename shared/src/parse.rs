@@ -1,0 +1,580 @@
+//! World files (TOML, see WORLD.md): parsing and validation.
+//!
+//! Every error names the file, and the line and column where it can be placed, in one
+//! sentence. Arbitrary input never panics (property-tested).
+
+use std::fmt;
+use std::path::Path;
+
+use serde::de::{Deserializer, MapAccess, Visitor};
+use serde::Deserialize;
+use toml::Spanned;
+
+use crate::state::{State, BOULDER_DESTROYED};
+use crate::world::{
+    cond_from_name, default_rules, EmpowermentDefaults, Object, ObjectKind, ObjectSet, Range,
+    Rule, Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_OBJECTS, MAX_SIDE,
+    MAX_TOOLS,
+};
+
+/// A world that could not be loaded.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum WorldError {
+    /// A mistake placed in the file.
+    #[error("{file}:{line}:{col}: {msg}")]
+    At {
+        /// File name as given.
+        file: String,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        col: usize,
+        /// One sentence.
+        msg: String,
+    },
+    /// A mistake about the file as a whole.
+    #[error("{file}: {msg}")]
+    File {
+        /// File name as given.
+        file: String,
+        /// One sentence.
+        msg: String,
+    },
+    /// The name is neither a file nor a built-in world.
+    #[error("unknown world '{0}': no such file, and not a built-in world ({list})", list = crate::builtin::NAMES.join(", "))]
+    Unknown(String),
+    /// The file exists but cannot be read.
+    #[error("cannot read world file {path}: {msg}")]
+    Io {
+        /// The path.
+        path: String,
+        /// The OS error.
+        msg: String,
+    },
+}
+
+/// Load a world by built-in name or path.
+pub fn load_world(name_or_path: &str) -> Result<World, WorldError> {
+    let path = Path::new(name_or_path);
+    if path.is_file() {
+        let text = std::fs::read_to_string(path).map_err(|e| WorldError::Io {
+            path: name_or_path.to_string(),
+            msg: e.to_string(),
+        })?;
+        return parse_world(&text, name_or_path);
+    }
+    match crate::builtin::source(name_or_path) {
+        Some(text) => parse_world(text, name_or_path),
+        None => Err(WorldError::Unknown(name_or_path.to_string())),
+    }
+}
+
+/// `[tools]` in file order, values with their spans.
+#[derive(Debug, Default)]
+struct Ordered(Vec<(String, Spanned<String>)>);
+
+impl<'de> Deserialize<'de> for Ordered {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Ordered;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a table of map letter = \"tool kind\"")
+            }
+            fn visit_map<A: MapAccess<'de>>(self, mut m: A) -> Result<Ordered, A::Error> {
+                let mut v = Vec::new();
+                while let Some((k, val)) = m.next_entry::<String, Spanned<String>>()? {
+                    v.push((k, val));
+                }
+                Ok(Ordered(v))
+            }
+        }
+        d.deserialize_map(V)
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWorld {
+    name: Spanned<String>,
+    max_steps: Option<Spanned<i64>>,
+    map: Spanned<String>,
+    #[serde(default)]
+    tools: Ordered,
+    task: Option<Spanned<RawTask>>,
+    empowerment: Option<Spanned<RawEmpowerment>>,
+    #[serde(default)]
+    rules: Vec<Spanned<RawRule>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawTask {
+    kind: Spanned<String>,
+    objects: Option<Vec<Spanned<String>>>,
+    object: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawEmpowerment {
+    tool: Option<Spanned<String>>,
+    objects: Option<Vec<Spanned<String>>>,
+    horizon_unequipped: Option<Spanned<i64>>,
+    horizon_equipped: Option<Spanned<i64>>,
+    beta: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRule {
+    tool: Spanned<String>,
+    target: Spanned<String>,
+    from: Spanned<String>,
+    to: Spanned<String>,
+    range: Spanned<toml::Value>,
+}
+
+/// The largest horizon a world file may name.
+pub const MAX_HORIZON: u32 = 64;
+
+/// Byte offset -> 1-based (line, column in characters).
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..text.floor_char_boundary_compat(offset)];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (line, col)
+}
+
+trait FloorBoundary {
+    fn floor_char_boundary_compat(&self, i: usize) -> usize;
+}
+impl FloorBoundary for str {
+    fn floor_char_boundary_compat(&self, mut i: usize) -> usize {
+        while i > 0 && !self.is_char_boundary(i) {
+            i -= 1;
+        }
+        i
+    }
+}
+
+struct Ctx<'a> {
+    text: &'a str,
+    file: &'a str,
+}
+
+impl Ctx<'_> {
+    fn at(&self, offset: usize, msg: impl Into<String>) -> WorldError {
+        let (line, col) = line_col(self.text, offset);
+        WorldError::At {
+            file: self.file.to_string(),
+            line,
+            col,
+            msg: msg.into(),
+        }
+    }
+    fn file(&self, msg: impl Into<String>) -> WorldError {
+        WorldError::File {
+            file: self.file.to_string(),
+            msg: msg.into(),
+        }
+    }
+}
+
+/// Parse and validate a world file's text. `file` names it in errors.
+pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
+    let cx = Ctx { text, file };
+    let raw: RawWorld = toml::from_str(text).map_err(|e| {
+        let msg = e.message().trim().trim_end_matches('.').to_string();
+        match e.span() {
+            Some(span) => cx.at(span.start, msg),
+            None => cx.file(msg),
+        }
+    })?;
+
+    let name = raw.name.get_ref();
+    if name.is_empty()
+        || !name
+            .bytes()
+            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+    {
+        return Err(cx.at(
+            raw.name.span().start,
+            format!("world name '{name}' must be made of a-z, 0-9 and '-'"),
+        ));
+    }
+    let max_steps = match &raw.max_steps {
+        None => 100,
+        Some(m) => {
+            let v = *m.get_ref();
+            if !(1..=1_000_000).contains(&v) {
+                return Err(cx.at(m.span().start, format!("max_steps = {v} must be between 1 and 1000000")));
+            }
+            v as u32
+        }
+    };
+
+    // Tools: letter -> kind, in file order.
+    let mut tool_decl: Vec<(char, String, usize)> = Vec::new();
+    for (letter, kind) in &raw.tools.0 {
+        let off = kind.span().start;
+        let mut cs = letter.chars();
+        let l = match (cs.next(), cs.next()) {
+            (Some(l), None) if l.is_ascii_lowercase() => l,
+            _ => {
+                return Err(cx.at(off, format!("[tools] key '{letter}' must be one lowercase letter (the tool's map glyph)")))
+            }
+        };
+        let k = kind.get_ref();
+        if k.is_empty() || !k.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_') {
+            return Err(cx.at(off, format!("unknown tool kind '{k}': a tool kind is a name of a-z, 0-9 and '_' (axe, pickaxe, key, wand, ...)")));
+        }
+        tool_decl.push((l, k.clone(), off));
+    }
+    if tool_decl.len() > MAX_TOOLS {
+        return Err(cx.at(tool_decl[MAX_TOOLS].2, format!("a world has at most {MAX_TOOLS} tools; [tools] lists {}", tool_decl.len())));
+    }
+
+    // The map.
+    let map_span = raw.map.span();
+    let map_text = raw.map.get_ref();
+    // Where the string's first character sits: after `"""` and its trimmed newline.
+    let raw_lit = &text[map_span.start.min(text.len())..map_span.end.min(text.len())];
+    let (content_start, plain) = if raw_lit.starts_with("\"\"\"") || raw_lit.starts_with("'''") {
+        let mut s = map_span.start + 3;
+        if text[s..].starts_with("\r\n") {
+            s += 2;
+        } else if text[s..].starts_with('\n') {
+            s += 1;
+        }
+        (s, !raw_lit.contains('\\') || raw_lit.starts_with("'''"))
+    } else {
+        (map_span.start + 1, !raw_lit.contains('\\') || raw_lit.starts_with('\''))
+    };
+    let map_lines = map_text.strip_suffix('\n').unwrap_or(map_text);
+    let map_lines = map_lines.strip_suffix('\r').unwrap_or(map_lines);
+    let rows: Vec<&str> = map_lines.split('\n').map(|r| r.strip_suffix('\r').unwrap_or(r)).collect();
+    // Place map cell (row, col) in the file when the literal has no escapes.
+    let cell_at = |row: usize, col: usize| -> usize {
+        if !plain {
+            return map_span.start;
+        }
+        let mut off = content_start;
+        for r in rows.iter().take(row) {
+            // The value's rows may end in "\n" where the file has "\r\n" (TOML
+            // normalises newlines in strings): step over what the file has.
+            off += r.len();
+            off += if text.get(off..).is_some_and(|t| t.starts_with("\r\n")) { 2 } else { 1 };
+        }
+        off + rows[row].char_indices().nth(col).map_or(0, |(i, _)| i)
+    };
+    if map_text.trim().is_empty() {
+        return Err(cx.at(map_span.start, "the map is empty"));
+    }
+    let height = rows.len();
+    if height > MAX_SIDE {
+        return Err(cx.at(cell_at(MAX_SIDE, 0), format!("the map is {height} rows tall; at most {MAX_SIDE} are allowed")));
+    }
+    let width = rows[0].chars().count();
+    for (y, r) in rows.iter().enumerate() {
+        let w = r.chars().count();
+        if w > MAX_SIDE {
+            return Err(cx.at(cell_at(y, MAX_SIDE), format!("map row {} is {w} cells wide; at most {MAX_SIDE} are allowed", y + 1)));
+        }
+        if w != width {
+            return Err(cx.at(cell_at(y, 0), format!("map row {} is {w} cells wide but row 1 is {width}; pad rows with spaces (solid rock) to one width", y + 1)));
+        }
+    }
+    if width == 0 {
+        return Err(cx.at(map_span.start, "the map's rows are empty"));
+    }
+
+    let mut terrain = vec![Terrain::Rock; width * height];
+    let mut agent = None;
+    let mut tools: Vec<Option<(u8, u8)>> = vec![None; tool_decl.len()];
+    let mut objects: Vec<(ObjectKind, (u8, u8))> = Vec::new();
+    for (y, r) in rows.iter().enumerate() {
+        for (x, ch) in r.chars().enumerate() {
+            let c = y * width + x;
+            let pos = (x as u8, y as u8);
+            let here = || cell_at(y, x);
+            terrain[c] = match ch {
+                '#' | '-' | '|' | ' ' => Terrain::Rock,
+                '.' => Terrain::Floor,
+                '>' => Terrain::Goal,
+                '@' => {
+                    if let Some((ax, ay)) = agent {
+                        return Err(cx.at(here(), format!("a second agent '@' at {x},{y}; the first is at {ax},{ay}")));
+                    }
+                    agent = Some(pos);
+                    Terrain::Floor
+                }
+                'T' | '=' | '+' | '0' => {
+                    let kind = match ch {
+                        'T' => ObjectKind::Tree,
+                        '=' => ObjectKind::Wall,
+                        '+' => ObjectKind::Door,
+                        _ => ObjectKind::Boulder,
+                    };
+                    if objects.len() == MAX_OBJECTS {
+                        return Err(cx.at(here(), format!("a world has at most {MAX_OBJECTS} objects; this {} at {x},{y} is number {}", kind.name(), MAX_OBJECTS + 1)));
+                    }
+                    objects.push((kind, pos));
+                    Terrain::Floor
+                }
+                l if l.is_ascii_lowercase() => {
+                    let Some(k) = tool_decl.iter().position(|t| t.0 == l) else {
+                        return Err(cx.at(here(), format!("map letter '{l}' at {x},{y} is not listed in [tools]")));
+                    };
+                    if let Some((px, py)) = tools[k] {
+                        return Err(cx.at(here(), format!("tool letter '{l}' appears twice on the map (at {px},{py} and {x},{y}); give each tool its own letter")));
+                    }
+                    tools[k] = Some(pos);
+                    Terrain::Floor
+                }
+                other => {
+                    return Err(cx.at(here(), format!("unknown glyph '{}' at {x},{y} (known: # - | space . > @ T = + 0 and tool letters)", other.escape_default())))
+                }
+            };
+        }
+    }
+    let Some(agent) = agent else {
+        return Err(cx.at(map_span.start, "the map has no agent '@'"));
+    };
+    for (k, t) in tools.iter().enumerate() {
+        if t.is_none() {
+            return Err(cx.at(tool_decl[k].2, format!("tool letter '{}' ({}) is listed in [tools] but not on the map", tool_decl[k].0, tool_decl[k].1)));
+        }
+    }
+
+    // Names: kind, or kind#i when the kind occurs more than once.
+    let name_of = |kinds: &[String], i: usize| -> String {
+        let k = &kinds[i];
+        if kinds.iter().filter(|x| *x == k).count() > 1 {
+            format!("{k}#{}", kinds[..i].iter().filter(|x| *x == k).count())
+        } else {
+            k.clone()
+        }
+    };
+    let tkinds: Vec<String> = tool_decl.iter().map(|t| t.1.clone()).collect();
+    let tools: Vec<Tool> = tool_decl
+        .iter()
+        .enumerate()
+        .map(|(k, t)| Tool {
+            letter: t.0,
+            kind: t.1.clone(),
+            name: name_of(&tkinds, k),
+            pos: tools[k].expect("checked above"),
+        })
+        .collect();
+    let okinds: Vec<String> = objects.iter().map(|o| o.0.name().to_string()).collect();
+    let objects: Vec<Object> = objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| Object { kind: o.0, name: name_of(&okinds, i), pos: o.1 })
+        .collect();
+
+    // Rules: defaults, then the file's.
+    let mut rules = default_rules();
+    for r in &raw.rules {
+        let rr = r.get_ref();
+        let tk = rr.tool.get_ref();
+        if !tools.iter().any(|t| &t.kind == tk) {
+            return Err(cx.at(rr.tool.span().start, format!("unknown tool kind '{tk}' in [[rules]]: no tool in [tools] is of that kind ({})", tkinds.join(", "))));
+        }
+        let Some(target) = ObjectKind::from_name(rr.target.get_ref()) else {
+            return Err(cx.at(rr.target.span().start, format!("unknown object kind '{}' in [[rules]] (tree, wall, door, boulder)", rr.target.get_ref())));
+        };
+        let cond = |s: &Spanned<String>| {
+            cond_from_name(target, s.get_ref()).ok_or_else(|| {
+                cx.at(s.span().start, format!("'{}' is not a condition of a {} ({})", s.get_ref(), target.name(), target.condition_names().join(", ")))
+            })
+        };
+        let (from, to) = (cond(&rr.from)?, cond(&rr.to)?);
+        if target == ObjectKind::Boulder && from == DESTROYED && to == INTACT {
+            return Err(cx.at(rr.to.span().start, "a rule cannot restore a destroyed boulder (it has no position)"));
+        }
+        let range = match rr.range.get_ref() {
+            toml::Value::Integer(1) => Range::Adjacent,
+            toml::Value::String(s) if s == "bolt" => Range::Bolt,
+            v => return Err(cx.at(rr.range.span().start, format!("range = {v} must be 1 or \"bolt\""))),
+        };
+        rules.push(Rule { tool: tk.clone(), target, from, to, range });
+    }
+
+    // The task.
+    let find_object = |s: &Spanned<String>, what: &str| -> Result<usize, WorldError> {
+        let n = s.get_ref();
+        find_object_by_name(&objects, n).ok_or_else(|| {
+            cx.at(s.span().start, format!("{what} names object '{n}', which is not on the map (objects: {})", list_names(&objects)))
+        })
+    };
+    let task = match &raw.task {
+        None => Task::None,
+        Some(t) => {
+            let tr = t.get_ref();
+            match tr.kind.get_ref().as_str() {
+                "destroy" => {
+                    let Some(list) = &tr.objects else {
+                        return Err(cx.at(t.span().start, "a destroy task needs objects = [...]"));
+                    };
+                    if list.is_empty() {
+                        return Err(cx.at(t.span().start, "a destroy task needs at least one object"));
+                    }
+                    let mut v = Vec::new();
+                    for o in list {
+                        let i = find_object(o, "the task")?;
+                        if !v.contains(&i) {
+                            v.push(i);
+                        }
+                    }
+                    Task::Destroy(v)
+                }
+                "push" => {
+                    let Some(o) = &tr.object else {
+                        return Err(cx.at(t.span().start, "a push task needs object = \"boulder\""));
+                    };
+                    let i = find_object(o, "the task")?;
+                    if objects[i].kind != ObjectKind::Boulder {
+                        return Err(cx.at(o.span().start, format!("a push task needs a boulder; '{}' is a {}", o.get_ref(), objects[i].kind.name())));
+                    }
+                    if !terrain.contains(&Terrain::Goal) {
+                        return Err(cx.at(t.span().start, "a push task needs a goal '>' on the map"));
+                    }
+                    Task::Push(i)
+                }
+                k => return Err(cx.at(tr.kind.span().start, format!("unknown task kind '{k}' (destroy or push)"))),
+            }
+        }
+    };
+
+    // Empowerment defaults.
+    let mut emp = EmpowermentDefaults {
+        tool: ToolChoice::Auto,
+        objects: None,
+        horizon_unequipped: 8,
+        horizon_equipped: 3,
+        beta: 0.0,
+    };
+    if let Some(e) = &raw.empowerment {
+        let er = e.get_ref();
+        if let Some(t) = &er.tool {
+            emp.tool = match t.get_ref().as_str() {
+                "auto" => ToolChoice::Auto,
+                "all" => ToolChoice::All,
+                n => match tools.iter().position(|x| x.name == n || x.kind == n) {
+                    Some(k) => ToolChoice::Tool(k),
+                    None => return Err(cx.at(t.span().start, format!("[empowerment] tool '{n}' is not a tool of this world ({}; or auto, all)", tkinds.join(", ")))),
+                },
+            };
+        }
+        if let Some(list) = &er.objects {
+            if list.len() == 1 && list[0].get_ref() == "agent" {
+                emp.objects = Some(ObjectSet::Agent);
+            } else if !list.is_empty() {
+                let mut v = Vec::new();
+                for o in list {
+                    let i = find_object(o, "[empowerment]")?;
+                    if !v.contains(&i) {
+                        v.push(i);
+                    }
+                }
+                v.sort_unstable();
+                emp.objects = Some(ObjectSet::Objects(v));
+            }
+        }
+        let horizon = |h: &Option<Spanned<i64>>, default: u32| -> Result<u32, WorldError> {
+            match h {
+                None => Ok(default),
+                Some(h) => {
+                    let v = *h.get_ref();
+                    if !(0..=MAX_HORIZON as i64).contains(&v) {
+                        return Err(cx.at(h.span().start, format!("horizon {v} must be between 0 and {MAX_HORIZON}")));
+                    }
+                    Ok(v as u32)
+                }
+            }
+        };
+        // Neither given: the paper's 8 and 3. One given: it serves both.
+        let (hu, he) = (&er.horizon_unequipped, &er.horizon_equipped);
+        let (du, de) = match (hu, he) {
+            (Some(_), None) | (None, Some(_)) => {
+                let one = horizon(if hu.is_some() { hu } else { he }, 0)?;
+                (one, one)
+            }
+            _ => (8, 3),
+        };
+        emp.horizon_unequipped = horizon(hu, du)?;
+        emp.horizon_equipped = horizon(he, de)?;
+        if let Some(b) = &er.beta {
+            let v = *b.get_ref();
+            if !v.is_finite() || v < 0.0 {
+                return Err(cx.at(b.span().start, format!("beta = {v} must be a finite number >= 0")));
+            }
+            emp.beta = v;
+        }
+    }
+
+    let mut tool_rules = Vec::with_capacity(tools.len());
+    let mut tool_bolt = Vec::with_capacity(tools.len());
+    for t in &tools {
+        let r: Vec<Rule> = rules.iter().filter(|r| r.tool == t.kind).cloned().collect();
+        tool_bolt.push(r.iter().any(|r| r.range == Range::Bolt));
+        tool_rules.push(r);
+    }
+    let mut tool_at = vec![0u8; width * height];
+    for (k, t) in tools.iter().enumerate() {
+        tool_at[t.pos.1 as usize * width + t.pos.0 as usize] = k as u8 + 1;
+    }
+    let mut static_at = vec![0u8; width * height];
+    let mut boulders = Vec::new();
+    let mut initial = State { x: agent.0, y: agent.1, ..State::default() };
+    for (i, o) in objects.iter().enumerate() {
+        let c = o.pos.1 as usize * width + o.pos.0 as usize;
+        if o.kind == ObjectKind::Boulder {
+            boulders.push(i as u8);
+            initial.objects[i] = c as u16;
+        } else {
+            static_at[c] = i as u8 + 1;
+            initial.objects[i] = INTACT as u16;
+        }
+    }
+    debug_assert!(initial.objects.iter().all(|&v| v != BOULDER_DESTROYED));
+
+    Ok(World {
+        name: name.clone(),
+        max_steps,
+        width,
+        height,
+        terrain,
+        tools,
+        objects,
+        rules,
+        tool_rules,
+        tool_bolt,
+        tool_at,
+        static_at,
+        boulders,
+        task,
+        empowerment: emp,
+        initial,
+        source: text.to_string(),
+    })
+}
+
+pub(crate) fn find_object_by_name(objects: &[Object], n: &str) -> Option<usize> {
+    objects.iter().position(|o| o.name == n).or_else(|| {
+        let (kind, ord) = n.split_once('#')?;
+        let ord: usize = ord.parse().ok()?;
+        let kind = ObjectKind::from_name(kind)?;
+        objects.iter().enumerate().filter(|(_, o)| o.kind == kind).nth(ord).map(|(i, _)| i)
+    })
+}
+
+fn list_names(objects: &[Object]) -> String {
+    if objects.is_empty() {
+        return "none".to_string();
+    }
+    objects.iter().map(|o| o.name.as_str()).collect::<Vec<_>>().join(", ")
+}
