@@ -129,7 +129,11 @@ impl<'w> Engine<'w> {
     /// Enumerate the world's state space.
     pub fn new(world: &'w World, limits: Limits) -> Result<Self, EngineError> {
         let space = StateSpace::enumerate(world, &limits)?;
-        Ok(Engine { world, space, limits })
+        Ok(Engine {
+            world,
+            space,
+            limits,
+        })
     }
 
     /// Number of normal-mode states.
@@ -213,7 +217,10 @@ impl<'w> Engine<'w> {
         let mut values = vec![vec![0.0; columns.len()]; n_tools];
         // Projections depend on the column only: make each once.
         let projs: Vec<Projection> = match method {
-            Method::Dp => columns.iter().map(|c| Projection::new(&self.space, c)).collect(),
+            Method::Dp => columns
+                .iter()
+                .map(|c| Projection::new(&self.space, c))
+                .collect(),
             Method::Enumerate => Vec::new(),
         };
         for &(j, c) in &pairs {
@@ -221,15 +228,27 @@ impl<'w> Engine<'w> {
             let actions = tool.actions(self.world);
             let counts = match method {
                 Method::Dp => {
-                    let what = format!("{} -> {}", tool.name(self.world), set_name(self.world, &columns[c]));
-                    check_table(&self.space, &projs[c], horizon_unequipped.max(horizon_equipped), &what, &self.limits)?;
+                    let what = format!(
+                        "{} -> {}",
+                        tool.name(self.world),
+                        set_name(self.world, &columns[c])
+                    );
+                    check_table(
+                        &self.space,
+                        &projs[c],
+                        horizon_unequipped.max(horizon_equipped),
+                        &what,
+                        &self.limits,
+                    )?;
                     let all = reachable_counts(&self.space, &projs[c], &actions, &horizons);
                     // Keep only the normal states, in `normal` order.
                     all.into_iter()
                         .map(|v| normal.iter().map(|&i| v[i as usize]).collect::<Vec<u32>>())
                         .collect::<Vec<_>>()
                 }
-                Method::Enumerate => self.enumerate_counts(&normal, &actions, &columns[c], &horizons)?,
+                Method::Enumerate => {
+                    self.enumerate_counts(&normal, &actions, &columns[c], &horizons)?
+                }
             };
             let sum: f64 = normal
                 .iter()
@@ -239,7 +258,11 @@ impl<'w> Engine<'w> {
                     (counts[held as usize][k] as f64).log2()
                 })
                 .sum();
-            values[j][c] = if normal.is_empty() { 0.0 } else { sum / normal.len() as f64 };
+            values[j][c] = if normal.is_empty() {
+                0.0
+            } else {
+                sum / normal.len() as f64
+            };
         }
         let selection = (0..columns.len())
             .map(|c| select(values.iter().map(|row| row[c])))
@@ -292,7 +315,9 @@ impl<'w> Engine<'w> {
                     .collect()
             }
         };
-        Ok(Landscape { values: vals.chunks(w).map(|r| r.to_vec()).collect() })
+        Ok(Landscape {
+            values: vals.chunks(w).map(|r| r.to_vec()).collect(),
+        })
     }
 
     /// E^h along an action sequence from the initial state (t = 0 is before any action).
@@ -306,11 +331,23 @@ impl<'w> Engine<'w> {
         let v = self.values(tool, set, h, Method::Dp)?;
         let mut s = self.world.initial;
         let mut out = Vec::with_capacity(actions.len() + 1);
-        let id = |s: &State| self.space.id(s).expect("every state reached from the start is in the space");
-        out.push(TraceStep { action: None, state: s, value: v[id(&s) as usize] });
+        let id = |s: &State| {
+            self.space
+                .id(s)
+                .expect("every state reached from the start is in the space")
+        };
+        out.push(TraceStep {
+            action: None,
+            state: s,
+            value: v[id(&s) as usize],
+        });
         for &a in actions {
             s = self.world.step(&s, a);
-            out.push(TraceStep { action: Some(a), state: s, value: v[id(&s) as usize] });
+            out.push(TraceStep {
+                action: Some(a),
+                state: s,
+                value: v[id(&s) as usize],
+            });
         }
         Ok(out)
     }
@@ -340,7 +377,13 @@ impl<'w> Engine<'w> {
             Method::Dp => Ok(self.values(tool, set, h, method)?[id as usize]),
             Method::Enumerate => {
                 check_enumerable(tool.actions(self.world).len(), &[h], 1)?;
-                Ok(enumerate::value(self.world, s, &tool.actions(self.world), set, h))
+                Ok(enumerate::value(
+                    self.world,
+                    s,
+                    &tool.actions(self.world),
+                    set,
+                    h,
+                ))
             }
         }
     }
@@ -351,7 +394,12 @@ fn check_enumerable(actions: usize, horizons: &[u32], states: usize) -> Result<(
     let h = horizons.iter().copied().max().unwrap_or(0);
     let per_state = (actions as f64).powi(h as i32);
     if per_state * states.max(1) as f64 > 1e11 || h > fulcrum_shared::MAX_HORIZON {
-        return Err(EngineError::EnumerationTooLong { h, actions, states, per_state });
+        return Err(EngineError::EnumerationTooLong {
+            h,
+            actions,
+            states,
+            per_state,
+        });
     }
     Ok(())
 }

@@ -17,7 +17,14 @@ pub fn reachable_count(world: &World, s: &State, actions: &[u8], set: &ObjectSet
     seen.len()
 }
 
-fn dfs(world: &World, s: &State, actions: &[u8], set: &ObjectSet, h: u32, seen: &mut FastSet<[u16; 16]>) {
+fn dfs(
+    world: &World,
+    s: &State,
+    actions: &[u8],
+    set: &ObjectSet,
+    h: u32,
+    seen: &mut FastSet<[u16; 16]>,
+) {
     if h == 0 {
         seen.insert(project_key(set, s));
         return;

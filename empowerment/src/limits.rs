@@ -21,7 +21,9 @@ impl Default for Limits {
                     .and_then(|kb| kb.parse::<usize>().ok())
             })
             .map(|kb| kb * 1024);
-        Limits { max_bytes: avail.map_or(4 << 30, |b| b / 2) }
+        Limits {
+            max_bytes: avail.map_or(4 << 30, |b| b / 2),
+        }
     }
 }
 

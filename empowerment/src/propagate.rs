@@ -64,7 +64,10 @@ impl Projection {
                 *map.entry(project_key(set, s)).or_insert(n)
             })
             .collect();
-        Projection { ids, size: map.len() }
+        Projection {
+            ids,
+            size: map.len(),
+        }
     }
 
     /// 64-bit words per set.
@@ -82,7 +85,10 @@ pub fn check_table(
     limits: &Limits,
 ) -> Result<(), EngineError> {
     if hmax > fulcrum_shared::MAX_HORIZON {
-        return Err(EngineError::HorizonTooLarge { h: hmax, max: fulcrum_shared::MAX_HORIZON });
+        return Err(EngineError::HorizonTooLarge {
+            h: hmax,
+            max: fulcrum_shared::MAX_HORIZON,
+        });
     }
     let bytes = space.len() * proj.words() * 8 * 2 + space.len() * 4;
     if space.bytes() + bytes > limits.max_bytes {
@@ -125,16 +131,23 @@ pub fn reachable_counts(
         let mut next = vec![0u64; n];
         record(0, &|| vec![1; n], &mut out);
         for k in 1..=hmax {
-            next.par_iter_mut().with_min_len(1024).enumerate().for_each(|(s, dst)| {
-                let row = &succ[s * na..s * na + na];
-                let mut acc = 0u64;
-                for &a in actions {
-                    acc |= cur[row[a as usize] as usize];
-                }
-                *dst = acc;
-            });
+            next.par_iter_mut()
+                .with_min_len(1024)
+                .enumerate()
+                .for_each(|(s, dst)| {
+                    let row = &succ[s * na..s * na + na];
+                    let mut acc = 0u64;
+                    for &a in actions {
+                        acc |= cur[row[a as usize] as usize];
+                    }
+                    *dst = acc;
+                });
             std::mem::swap(&mut cur, &mut next);
-            record(k, &|| cur.par_iter().map(|x| x.count_ones()).collect(), &mut out);
+            record(
+                k,
+                &|| cur.par_iter().map(|x| x.count_ones()).collect(),
+                &mut out,
+            );
         }
     } else {
         let mut cur = vec![0u64; n * w];
@@ -144,20 +157,27 @@ pub fn reachable_counts(
         let mut next = vec![0u64; n * w];
         record(0, &|| vec![1; n], &mut out);
         for k in 1..=hmax {
-            next.par_chunks_mut(w).with_min_len(256).enumerate().for_each(|(s, dst)| {
-                let row = &succ[s * na..s * na + na];
-                dst.fill(0);
-                for &a in actions {
-                    let t = row[a as usize] as usize;
-                    for (d, x) in dst.iter_mut().zip(&cur[t * w..t * w + w]) {
-                        *d |= *x;
+            next.par_chunks_mut(w)
+                .with_min_len(256)
+                .enumerate()
+                .for_each(|(s, dst)| {
+                    let row = &succ[s * na..s * na + na];
+                    dst.fill(0);
+                    for &a in actions {
+                        let t = row[a as usize] as usize;
+                        for (d, x) in dst.iter_mut().zip(&cur[t * w..t * w + w]) {
+                            *d |= *x;
+                        }
                     }
-                }
-            });
+                });
             std::mem::swap(&mut cur, &mut next);
             record(
                 k,
-                &|| cur.par_chunks(w).map(|c| c.iter().map(|x| x.count_ones()).sum()).collect(),
+                &|| {
+                    cur.par_chunks(w)
+                        .map(|c| c.iter().map(|x| x.count_ones()).sum())
+                        .collect()
+                },
                 &mut out,
             );
         }

@@ -80,7 +80,12 @@ impl StateSpace {
             }
             start = end;
         }
-        Ok(StateSpace { states, index, succ, actions: na })
+        Ok(StateSpace {
+            states,
+            index,
+            succ,
+            actions: na,
+        })
     }
 
     /// Number of states.

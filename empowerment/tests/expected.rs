@@ -29,7 +29,11 @@ fn state_space_sizes() {
     ] {
         let w = load_world(name).unwrap();
         let e = Engine::new(&w, Limits::default()).unwrap();
-        assert_eq!((e.space.len(), e.normal_states()), (states, normal), "{name}");
+        assert_eq!(
+            (e.space.len(), e.normal_states()),
+            (states, normal),
+            "{name}"
+        );
     }
 }
 
@@ -59,7 +63,12 @@ fn check_matrix(
         }
     }
     for (c, s) in selection.iter().enumerate() {
-        assert_eq!(m.selection[c].map(|j| m.tools[j].as_str()), *s, "{world} selection of {}", m.columns[c]);
+        assert_eq!(
+            m.selection[c].map(|j| m.tools[j].as_str()),
+            *s,
+            "{world} selection of {}",
+            m.columns[c]
+        );
     }
 }
 
@@ -131,11 +140,21 @@ fn exp3_matrix() {
 }
 
 /// Cells of a landscape with a value, and the value at each.
-fn landscape(world: &str, t: &str, objects: &[&str], h: u32, holding: &[&str]) -> (World, Vec<Vec<Option<f64>>>) {
+fn landscape(
+    world: &str,
+    t: &str,
+    objects: &[&str],
+    h: u32,
+    holding: &[&str],
+) -> (World, Vec<Vec<Option<f64>>>) {
     let w = load_world(world).unwrap();
     let e = Engine::new(&w, Limits::default()).unwrap();
-    let inv = holding.iter().fold(0u16, |m, t| m | 1 << w.tool_index(t).unwrap());
-    let l = e.landscape(tool(&w, t), &objs(&w, objects), h, inv, Method::Dp).unwrap();
+    let inv = holding
+        .iter()
+        .fold(0u16, |m, t| m | 1 << w.tool_index(t).unwrap());
+    let l = e
+        .landscape(tool(&w, t), &objs(&w, objects), h, inv, Method::Dp)
+        .unwrap();
     drop(e);
     (w, l.values)
 }
@@ -219,9 +238,16 @@ fn exp2_landscape_unequipped_table() {
 fn trace(world: &str, t: &str, actions: &str) -> Vec<f64> {
     let w = load_world(world).unwrap();
     let e = Engine::new(&w, Limits::default()).unwrap();
-    let acts: Vec<u8> = actions.split(',').map(|a| w.parse_action(a).unwrap()).collect();
+    let acts: Vec<u8> = actions
+        .split(',')
+        .map(|a| w.parse_action(a).unwrap())
+        .collect();
     let door = objs(&w, &["door"]);
-    e.trace(tool(&w, t), &door, 3, &acts).unwrap().iter().map(|s| s.value).collect()
+    e.trace(tool(&w, t), &door, 3, &acts)
+        .unwrap()
+        .iter()
+        .map(|s| s.value)
+        .collect()
 }
 
 #[test]
@@ -230,7 +256,11 @@ fn exp3_key_trace() {
     // open again (t = 16): 1.0 at every step from the door front. Then E into the
     // doorway (t = 17): 0.0, since the door cannot close on the agent and leaving the
     // doorway takes a step too many.
-    let v = trace("exp3", "key", "N,N,E,E,E,E,S,apply,key,E,apply,key,E,apply,key,E,E");
+    let v = trace(
+        "exp3",
+        "key",
+        "N,N,E,E,E,E,S,apply,key,E,apply,key,E,apply,key,E,E",
+    );
     assert_eq!(v.len(), 18);
     assert!(v[..7].iter().all(|&x| x == 0.0), "{v:?}");
     assert!(v[7..17].iter().all(|&x| x == 1.0), "{v:?}");
@@ -264,13 +294,20 @@ fn closed_form_in_an_open_room() {
     let text = format!("name = \"open\"\nmap = \"\"\"\n{map}\"\"\"\n[tools]\n");
     let w = parse_world(&text, "open.toml").unwrap();
     let e = Engine::new(&w, Limits::default()).unwrap();
-    let expected = [2.321928, 3.700440, 4.643856, 5.357552, 5.930737, 6.409391, 6.820179, 7.179909];
+    let expected = [
+        2.321928, 3.700440, 4.643856, 5.357552, 5.930737, 6.409391, 6.820179, 7.179909,
+    ];
     let id = e.space.id(&w.initial).unwrap() as usize;
     for (k, want) in expected.iter().enumerate() {
         let n = k as u32 + 1;
-        let v = e.values(ToolSel::All, &ObjectSet::Agent, n, Method::Dp).unwrap()[id];
+        let v = e
+            .values(ToolSel::All, &ObjectSet::Agent, n, Method::Dp)
+            .unwrap()[id];
         let exact = ((2 * n * n + 2 * n + 1) as f64).log2();
         assert!(close(v, exact), "n = {n}: {v} vs log2(2n^2+2n+1) = {exact}");
-        assert!((v - want).abs() < 1e-6, "n = {n}: {v} vs EXPECTED.md {want}");
+        assert!(
+            (v - want).abs() < 1e-6,
+            "n = {n}: {v} vs EXPECTED.md {want}"
+        );
     }
 }

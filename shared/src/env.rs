@@ -135,7 +135,11 @@ impl World {
 
     /// A fresh episode at the initial state.
     pub fn reset(&self) -> Episode {
-        Episode { state: self.initial, t: 0, rewarded: 0 }
+        Episode {
+            state: self.initial,
+            t: 0,
+            rewarded: 0,
+        }
     }
 
     /// Take action `a` in the episode: the state moves, the task pays, the episode may
@@ -145,7 +149,11 @@ impl World {
         ep.state = next;
         ep.t += 1;
         let (reward, terminated) = self.task_reward(&next, &mut ep.rewarded);
-        Outcome { reward, terminated, truncated: !terminated && ep.t >= self.max_steps }
+        Outcome {
+            reward,
+            terminated,
+            truncated: !terminated && ep.t >= self.max_steps,
+        }
     }
 
     /// The task's reward for arriving in `s`, and whether `s` is terminal. `rewarded`

@@ -8,8 +8,6 @@
 //! assert_eq!((s.x, s.y), (2, 4));
 //! ```
 
-/// World files: parsing and validation with file:line:col errors.
-pub mod parse;
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
 /// Episodes, task rewards and the learner's observation encoding.
@@ -18,6 +16,8 @@ pub mod env;
 pub mod generate;
 /// A fast hasher for state-keyed maps.
 pub mod hash;
+/// World files: parsing and validation with file:line:col errors.
+pub mod parse;
 /// The packed state and its text form.
 pub mod state;
 /// The world, the rule table and the exact dynamics.

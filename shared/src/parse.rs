@@ -12,9 +12,8 @@ use toml::Spanned;
 
 use crate::state::{State, BOULDER_DESTROYED};
 use crate::world::{
-    cond_from_name, default_rules, EmpowermentDefaults, Object, ObjectKind, ObjectSet, Range,
-    Rule, Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_OBJECTS, MAX_SIDE,
-    MAX_TOOLS,
+    cond_from_name, default_rules, EmpowermentDefaults, Object, ObjectKind, ObjectSet, Range, Rule,
+    Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_OBJECTS, MAX_SIDE, MAX_TOOLS,
 };
 
 /// A world that could not be loaded.
@@ -209,7 +208,10 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         Some(m) => {
             let v = *m.get_ref();
             if !(1..=1_000_000).contains(&v) {
-                return Err(cx.at(m.span().start, format!("max_steps = {v} must be between 1 and 1000000")));
+                return Err(cx.at(
+                    m.span().start,
+                    format!("max_steps = {v} must be between 1 and 1000000"),
+                ));
             }
             v as u32
         }
@@ -222,18 +224,31 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         let mut cs = letter.chars();
         let l = match (cs.next(), cs.next()) {
             (Some(l), None) if l.is_ascii_lowercase() => l,
-            _ => {
-                return Err(cx.at(off, format!("[tools] key '{letter}' must be one lowercase letter (the tool's map glyph)")))
-            }
+            _ => return Err(cx.at(
+                off,
+                format!(
+                    "[tools] key '{letter}' must be one lowercase letter (the tool's map glyph)"
+                ),
+            )),
         };
         let k = kind.get_ref();
-        if k.is_empty() || !k.bytes().all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_') {
+        if k.is_empty()
+            || !k
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_')
+        {
             return Err(cx.at(off, format!("unknown tool kind '{k}': a tool kind is a name of a-z, 0-9 and '_' (axe, pickaxe, key, wand, ...)")));
         }
         tool_decl.push((l, k.clone(), off));
     }
     if tool_decl.len() > MAX_TOOLS {
-        return Err(cx.at(tool_decl[MAX_TOOLS].2, format!("a world has at most {MAX_TOOLS} tools; [tools] lists {}", tool_decl.len())));
+        return Err(cx.at(
+            tool_decl[MAX_TOOLS].2,
+            format!(
+                "a world has at most {MAX_TOOLS} tools; [tools] lists {}",
+                tool_decl.len()
+            ),
+        ));
     }
 
     // The map.
@@ -250,11 +265,17 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         }
         (s, !raw_lit.contains('\\') || raw_lit.starts_with("'''"))
     } else {
-        (map_span.start + 1, !raw_lit.contains('\\') || raw_lit.starts_with('\''))
+        (
+            map_span.start + 1,
+            !raw_lit.contains('\\') || raw_lit.starts_with('\''),
+        )
     };
     let map_lines = map_text.strip_suffix('\n').unwrap_or(map_text);
     let map_lines = map_lines.strip_suffix('\r').unwrap_or(map_lines);
-    let rows: Vec<&str> = map_lines.split('\n').map(|r| r.strip_suffix('\r').unwrap_or(r)).collect();
+    let rows: Vec<&str> = map_lines
+        .split('\n')
+        .map(|r| r.strip_suffix('\r').unwrap_or(r))
+        .collect();
     // Place map cell (row, col) in the file when the literal has no escapes.
     let cell_at = |row: usize, col: usize| -> usize {
         if !plain {
@@ -265,7 +286,8 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             // The value's rows may end in "\n" where the file has "\r\n" (TOML
             // normalises newlines in strings): step over what the file has.
             off += r.len();
-            off += if text.get(off..).is_some_and(|t| t.starts_with("\r\n")) { 2 } else { 1 };
+            let crlf = text.get(off..).is_some_and(|t| t.starts_with("\r\n"));
+            off += if crlf { 2 } else { 1 };
         }
         off + rows[row].char_indices().nth(col).map_or(0, |(i, _)| i)
     };
@@ -274,13 +296,22 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     }
     let height = rows.len();
     if height > MAX_SIDE {
-        return Err(cx.at(cell_at(MAX_SIDE, 0), format!("the map is {height} rows tall; at most {MAX_SIDE} are allowed")));
+        return Err(cx.at(
+            cell_at(MAX_SIDE, 0),
+            format!("the map is {height} rows tall; at most {MAX_SIDE} are allowed"),
+        ));
     }
     let width = rows[0].chars().count();
     for (y, r) in rows.iter().enumerate() {
         let w = r.chars().count();
         if w > MAX_SIDE {
-            return Err(cx.at(cell_at(y, MAX_SIDE), format!("map row {} is {w} cells wide; at most {MAX_SIDE} are allowed", y + 1)));
+            return Err(cx.at(
+                cell_at(y, MAX_SIDE),
+                format!(
+                    "map row {} is {w} cells wide; at most {MAX_SIDE} are allowed",
+                    y + 1
+                ),
+            ));
         }
         if w != width {
             return Err(cx.at(cell_at(y, 0), format!("map row {} is {w} cells wide but row 1 is {width}; pad rows with spaces (solid rock) to one width", y + 1)));
@@ -344,7 +375,13 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     };
     for (k, t) in tools.iter().enumerate() {
         if t.is_none() {
-            return Err(cx.at(tool_decl[k].2, format!("tool letter '{}' ({}) is listed in [tools] but not on the map", tool_decl[k].0, tool_decl[k].1)));
+            return Err(cx.at(
+                tool_decl[k].2,
+                format!(
+                    "tool letter '{}' ({}) is listed in [tools] but not on the map",
+                    tool_decl[k].0, tool_decl[k].1
+                ),
+            ));
         }
     }
 
@@ -372,7 +409,11 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     let objects: Vec<Object> = objects
         .iter()
         .enumerate()
-        .map(|(i, o)| Object { kind: o.0, name: name_of(&okinds, i), pos: o.1 })
+        .map(|(i, o)| Object {
+            kind: o.0,
+            name: name_of(&okinds, i),
+            pos: o.1,
+        })
         .collect();
 
     // Rules: defaults, then the file's.
@@ -384,30 +425,64 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             return Err(cx.at(rr.tool.span().start, format!("unknown tool kind '{tk}' in [[rules]]: no tool in [tools] is of that kind ({})", tkinds.join(", "))));
         }
         let Some(target) = ObjectKind::from_name(rr.target.get_ref()) else {
-            return Err(cx.at(rr.target.span().start, format!("unknown object kind '{}' in [[rules]] (tree, wall, door, boulder)", rr.target.get_ref())));
+            return Err(cx.at(
+                rr.target.span().start,
+                format!(
+                    "unknown object kind '{}' in [[rules]] (tree, wall, door, boulder)",
+                    rr.target.get_ref()
+                ),
+            ));
         };
         let cond = |s: &Spanned<String>| {
             cond_from_name(target, s.get_ref()).ok_or_else(|| {
-                cx.at(s.span().start, format!("'{}' is not a condition of a {} ({})", s.get_ref(), target.name(), target.condition_names().join(", ")))
+                cx.at(
+                    s.span().start,
+                    format!(
+                        "'{}' is not a condition of a {} ({})",
+                        s.get_ref(),
+                        target.name(),
+                        target.condition_names().join(", ")
+                    ),
+                )
             })
         };
         let (from, to) = (cond(&rr.from)?, cond(&rr.to)?);
         if target == ObjectKind::Boulder && from == DESTROYED && to == INTACT {
-            return Err(cx.at(rr.to.span().start, "a rule cannot restore a destroyed boulder (it has no position)"));
+            return Err(cx.at(
+                rr.to.span().start,
+                "a rule cannot restore a destroyed boulder (it has no position)",
+            ));
         }
         let range = match rr.range.get_ref() {
             toml::Value::Integer(1) => Range::Adjacent,
             toml::Value::String(s) if s == "bolt" => Range::Bolt,
-            v => return Err(cx.at(rr.range.span().start, format!("range = {v} must be 1 or \"bolt\""))),
+            v => {
+                return Err(cx.at(
+                    rr.range.span().start,
+                    format!("range = {v} must be 1 or \"bolt\""),
+                ))
+            }
         };
-        rules.push(Rule { tool: tk.clone(), target, from, to, range });
+        rules.push(Rule {
+            tool: tk.clone(),
+            target,
+            from,
+            to,
+            range,
+        });
     }
 
     // The task.
     let find_object = |s: &Spanned<String>, what: &str| -> Result<usize, WorldError> {
         let n = s.get_ref();
         find_object_by_name(&objects, n).ok_or_else(|| {
-            cx.at(s.span().start, format!("{what} names object '{n}', which is not on the map (objects: {})", list_names(&objects)))
+            cx.at(
+                s.span().start,
+                format!(
+                    "{what} names object '{n}', which is not on the map (objects: {})",
+                    list_names(&objects)
+                ),
+            )
         })
     };
     let task = match &raw.task {
@@ -420,7 +495,9 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
                         return Err(cx.at(t.span().start, "a destroy task needs objects = [...]"));
                     };
                     if list.is_empty() {
-                        return Err(cx.at(t.span().start, "a destroy task needs at least one object"));
+                        return Err(
+                            cx.at(t.span().start, "a destroy task needs at least one object")
+                        );
                     }
                     let mut v = Vec::new();
                     for o in list {
@@ -437,14 +514,28 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
                     };
                     let i = find_object(o, "the task")?;
                     if objects[i].kind != ObjectKind::Boulder {
-                        return Err(cx.at(o.span().start, format!("a push task needs a boulder; '{}' is a {}", o.get_ref(), objects[i].kind.name())));
+                        return Err(cx.at(
+                            o.span().start,
+                            format!(
+                                "a push task needs a boulder; '{}' is a {}",
+                                o.get_ref(),
+                                objects[i].kind.name()
+                            ),
+                        ));
                     }
                     if !terrain.contains(&Terrain::Goal) {
-                        return Err(cx.at(t.span().start, "a push task needs a goal '>' on the map"));
+                        return Err(
+                            cx.at(t.span().start, "a push task needs a goal '>' on the map")
+                        );
                     }
                     Task::Push(i)
                 }
-                k => return Err(cx.at(tr.kind.span().start, format!("unknown task kind '{k}' (destroy or push)"))),
+                k => {
+                    return Err(cx.at(
+                        tr.kind.span().start,
+                        format!("unknown task kind '{k}' (destroy or push)"),
+                    ))
+                }
             }
         }
     };
@@ -490,7 +581,10 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
                 Some(h) => {
                     let v = *h.get_ref();
                     if !(0..=MAX_HORIZON as i64).contains(&v) {
-                        return Err(cx.at(h.span().start, format!("horizon {v} must be between 0 and {MAX_HORIZON}")));
+                        return Err(cx.at(
+                            h.span().start,
+                            format!("horizon {v} must be between 0 and {MAX_HORIZON}"),
+                        ));
                     }
                     Ok(v as u32)
                 }
@@ -510,7 +604,10 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         if let Some(b) = &er.beta {
             let v = *b.get_ref();
             if !v.is_finite() || v < 0.0 {
-                return Err(cx.at(b.span().start, format!("beta = {v} must be a finite number >= 0")));
+                return Err(cx.at(
+                    b.span().start,
+                    format!("beta = {v} must be a finite number >= 0"),
+                ));
             }
             emp.beta = v;
         }
@@ -529,7 +626,11 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     }
     let mut static_at = vec![0u8; width * height];
     let mut boulders = Vec::new();
-    let mut initial = State { x: agent.0, y: agent.1, ..State::default() };
+    let mut initial = State {
+        x: agent.0,
+        y: agent.1,
+        ..State::default()
+    };
     for (i, o) in objects.iter().enumerate() {
         let c = o.pos.1 as usize * width + o.pos.0 as usize;
         if o.kind == ObjectKind::Boulder {
@@ -568,7 +669,12 @@ pub(crate) fn find_object_by_name(objects: &[Object], n: &str) -> Option<usize> 
         let (kind, ord) = n.split_once('#')?;
         let ord: usize = ord.parse().ok()?;
         let kind = ObjectKind::from_name(kind)?;
-        objects.iter().enumerate().filter(|(_, o)| o.kind == kind).nth(ord).map(|(i, _)| i)
+        objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.kind == kind)
+            .nth(ord)
+            .map(|(i, _)| i)
     })
 }
 
@@ -576,5 +682,9 @@ fn list_names(objects: &[Object]) -> String {
     if objects.is_empty() {
         return "none".to_string();
     }
-    objects.iter().map(|o| o.name.as_str()).collect::<Vec<_>>().join(", ")
+    objects
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect::<Vec<_>>()
+        .join(", ")
 }

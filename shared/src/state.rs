@@ -61,10 +61,16 @@ impl State {
     pub fn words(&self) -> [u64; 5] {
         let o = &self.objects;
         let q = |i: usize| {
-            o[i] as u64 | (o[i + 1] as u64) << 16 | (o[i + 2] as u64) << 32 | (o[i + 3] as u64) << 48
+            o[i] as u64
+                | (o[i + 1] as u64) << 16
+                | (o[i + 2] as u64) << 32
+                | (o[i + 3] as u64) << 48
         };
         [
-            self.x as u64 | (self.y as u64) << 8 | (self.mode as u64) << 16 | (self.inventory as u64) << 32,
+            self.x as u64
+                | (self.y as u64) << 8
+                | (self.mode as u64) << 16
+                | (self.inventory as u64) << 32,
             q(0),
             q(4),
             q(8),
@@ -183,7 +189,9 @@ impl World {
         let mut mode_text = None;
         for item in text.split_whitespace() {
             let Some((key, value)) = item.split_once('=') else {
-                return err(format!("'{item}' in the state description is not of the form key=value"));
+                return err(format!(
+                    "'{item}' in the state description is not of the form key=value"
+                ));
             };
             match key {
                 "agent" => agent = Some(self.parse_cell(value, "agent")?),
@@ -191,10 +199,12 @@ impl World {
                     for t in value.split(',').filter(|t| !t.is_empty()) {
                         match self.tool_index(t) {
                             Some(k) => s.inventory |= 1 << k,
-                            None => return err(format!(
+                            None => {
+                                return err(format!(
                                 "holding={value}: '{t}' is not a tool of world '{}' (tools: {})",
                                 self.name, self.tool_list()
-                            )),
+                            ))
+                            }
                         }
                     }
                 }
@@ -216,11 +226,17 @@ impl World {
                     } else {
                         match cond_from_name(kind, value) {
                             Some(c) => s.objects[i] = c as u16,
-                            None => return err(format!(
-                                "{key}={value}: a {} is {}",
-                                kind.name(),
-                                if kind == ObjectKind::Boulder { "X,Y or destroyed".to_string() } else { kind.condition_names().join(", ") }
-                            )),
+                            None => {
+                                return err(format!(
+                                    "{key}={value}: a {} is {}",
+                                    kind.name(),
+                                    if kind == ObjectKind::Boulder {
+                                        "X,Y or destroyed".to_string()
+                                    } else {
+                                        kind.condition_names().join(", ")
+                                    }
+                                ))
+                            }
                         }
                     }
                 }
@@ -238,11 +254,18 @@ impl World {
                 _ => match m.strip_prefix("choosing-direction:") {
                     Some(t) => match self.tool_index(t) {
                         Some(k) => Mode::ChoosingDirection(k as u8),
-                        None => return err(format!("mode={m}: '{t}' is not a tool of world '{}'", self.name)),
+                        None => {
+                            return err(format!(
+                                "mode={m}: '{t}' is not a tool of world '{}'",
+                                self.name
+                            ))
+                        }
                     },
-                    None => return err(format!(
-                        "mode={m}: expected normal, choosing-tool or choosing-direction:TOOL"
-                    )),
+                    None => {
+                        return err(format!(
+                            "mode={m}: expected normal, choosing-tool or choosing-direction:TOOL"
+                        ))
+                    }
                 },
             };
             s.set_mode(mode);
@@ -259,7 +282,10 @@ impl World {
             ))
         };
         let (x, y) = value.split_once(',').ok_or_else(bad)?;
-        let (x, y): (usize, usize) = (x.trim().parse().map_err(|_| bad())?, y.trim().parse().map_err(|_| bad())?);
+        let (x, y): (usize, usize) = (
+            x.trim().parse().map_err(|_| bad())?,
+            y.trim().parse().map_err(|_| bad())?,
+        );
         if x >= self.width || y >= self.height {
             return Err(bad());
         }
@@ -268,12 +294,20 @@ impl World {
 
     /// Names of the tools, comma separated.
     pub fn tool_list(&self) -> String {
-        self.tools.iter().map(|t| t.name.as_str()).collect::<Vec<_>>().join(", ")
+        self.tools
+            .iter()
+            .map(|t| t.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// Names of the objects, comma separated.
     pub fn object_list(&self) -> String {
-        self.objects.iter().map(|o| o.name.as_str()).collect::<Vec<_>>().join(", ")
+        self.objects
+            .iter()
+            .map(|o| o.name.as_str())
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 
     /// Plain impossibilities, with the reason.
@@ -283,7 +317,9 @@ impl World {
         let (x, y) = (s.x as usize, s.y as usize);
         let c = y * self.width + x;
         if self.terrain[c] == Terrain::Rock {
-            return err(format!("the agent cannot stand at {x},{y}: that cell is rock"));
+            return err(format!(
+                "the agent cannot stand at {x},{y}: that cell is rock"
+            ));
         }
         if let Some(o) = self.static_object_cell(x, y) {
             if s.objects[o] == INTACT as u16 {
@@ -323,10 +359,14 @@ impl World {
             let (bx, by) = (v as usize % self.width, v as usize / self.width);
             let name = &self.objects[b].name;
             if (bx, by) == (x, y) {
-                return err(format!("the agent and the {name} cannot both stand at {x},{y}"));
+                return err(format!(
+                    "the agent and the {name} cannot both stand at {x},{y}"
+                ));
             }
             if self.terrain[v as usize] == Terrain::Rock {
-                return err(format!("the {name} cannot stand at {bx},{by}: that cell is rock"));
+                return err(format!(
+                    "the {name} cannot stand at {bx},{by}: that cell is rock"
+                ));
             }
             if let Some(o) = self.static_object_cell(bx, by) {
                 if s.objects[o] == INTACT as u16 {
@@ -345,10 +385,7 @@ impl World {
                     ));
                 }
             }
-            if self
-                .boulder_indices()
-                .any(|o| o != b && s.objects[o] == v)
-            {
+            if self.boulder_indices().any(|o| o != b && s.objects[o] == v) {
                 return err(format!("two boulders cannot both stand at {bx},{by}"));
             }
         }

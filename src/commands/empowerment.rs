@@ -1,0 +1,500 @@
+//! `fulcrum empowerment matrix|landscape|trace|query`.
+
+use std::io::IsTerminal;
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use fulcrum_empowerment::{set_name, Engine, Method, ToolSel};
+use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
+use serde_json::json;
+
+use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
+use crate::commands::{bad, engine, holding_mask, object_set, objects_or_default, tool_sel, world};
+use crate::plot;
+
+/// Run an `empowerment` subcommand.
+pub fn run(cmd: EmpCmd) -> Result<()> {
+    match cmd {
+        EmpCmd::Matrix(a) => matrix(&a),
+        EmpCmd::Landscape(a) => landscape(&a),
+        EmpCmd::Trace(a) => trace(&a),
+        EmpCmd::Query(a) => query(&a),
+    }
+}
+
+fn fmt_bits(v: f64) -> String {
+    if v == 0.0 {
+        "0".to_string()
+    } else {
+        format!("{v:.6}")
+    }
+}
+
+fn matrix(a: &MatrixArgs) -> Result<()> {
+    let w = world(&a.world)?;
+    let (hu, he) = match a.horizon {
+        Some(h) => (h, h),
+        None => (
+            a.horizon_unequipped
+                .unwrap_or(w.empowerment.horizon_unequipped),
+            a.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped),
+        ),
+    };
+    let mut columns: Vec<ObjectSet> = match &a.objects {
+        Some(list) => list
+            .split(',')
+            .map(|n| object_set(&w, n.trim()))
+            .collect::<Result<_>>()?,
+        None => (0..w.objects.len())
+            .map(|i| ObjectSet::Objects(vec![i]))
+            .collect(),
+    };
+    for j in &a.joint {
+        columns.push(object_set(&w, j)?);
+    }
+    if columns.is_empty() {
+        return bad(format!(
+            "world '{}' has no objects: nothing to put in the matrix's columns",
+            w.name
+        ));
+    }
+    if w.tools.is_empty() {
+        return bad(format!(
+            "world '{}' has no tools: the matrix has no rows",
+            w.name
+        ));
+    }
+    let t0 = Instant::now();
+    let e = engine(&w)?;
+    let m = e.matrix(&columns, hu, he, a.method.into())?;
+    let elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if a.json {
+        let selection: serde_json::Map<String, serde_json::Value> = m
+            .columns
+            .iter()
+            .zip(&m.selection)
+            .map(|(c, s)| {
+                (
+                    c.clone(),
+                    s.map_or(serde_json::Value::Null, |j| json!(m.tools[j])),
+                )
+            })
+            .collect();
+        let v = json!({
+            "world": w.name,
+            "states": e.space.len(),
+            "normal_states": m.normal_states,
+            "horizon_unequipped": hu,
+            "horizon_equipped": he,
+            "method": format!("{:?}", Method::from(a.method)).to_lowercase(),
+            "tools": m.tools,
+            "columns": m.columns,
+            "matrix": m.values,
+            "selection": selection,
+            "elapsed_ms": elapsed_ms,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{}: {} states ({} normal-mode averaged), h = {hu} unequipped / {he} equipped, {elapsed_ms:.1} ms",
+        w.name,
+        e.space.len(),
+        m.normal_states
+    );
+    println!("tool-object empowerment matrix, bits (* = selected tool)\n");
+    let tw = m.tools.iter().map(|t| t.len()).max().unwrap_or(4).max(4) + 2;
+    let cw: Vec<usize> = m.columns.iter().map(|c| c.len().max(10) + 2).collect();
+    let mut line = format!("{:<tw$}", "tool");
+    for (c, name) in m.columns.iter().enumerate() {
+        line.push_str(&format!("{:>width$}", name, width = cw[c]));
+    }
+    println!("{}", line.trim_end());
+    for (j, t) in m.tools.iter().enumerate() {
+        let mut line = format!("{t:<tw$}");
+        for (c, v) in m.values[j].iter().enumerate() {
+            let mark = if m.selection[c] == Some(j) { "*" } else { " " };
+            line.push_str(&format!(
+                "{:>width$}{mark}",
+                fmt_bits(*v),
+                width = cw[c] - 1
+            ));
+        }
+        println!("{}", line.trim_end());
+    }
+    let sel: Vec<String> = m
+        .columns
+        .iter()
+        .zip(&m.selection)
+        .map(|(c, s)| format!("{c} -> {}", s.map_or("none", |j| m.tools[j].as_str())))
+        .collect();
+    println!("\nselection: {}", sel.join(", "));
+    Ok(())
+}
+
+/// World, engine, tool and object set of a channel.
+struct Resolved<'w> {
+    e: Engine<'w>,
+    tool: ToolSel,
+    set: ObjectSet,
+}
+
+fn resolve<'w>(w: &'w World, ch: &Channel) -> Result<Resolved<'w>> {
+    let set = objects_or_default(w, ch.objects.as_deref())?;
+    let e = engine(w)?;
+    let tool = tool_sel(w, &e, ch.tool.as_deref(), &set)?;
+    Ok(Resolved { e, tool, set })
+}
+
+/// The horizon at a state: `--horizon`, else the world's by whether the tool is held.
+fn horizon_for(w: &World, ch: &Channel, tool: ToolSel, s: &State) -> u32 {
+    ch.horizon.unwrap_or(if tool.held(s) {
+        w.empowerment.horizon_equipped
+    } else {
+        w.empowerment.horizon_unequipped
+    })
+}
+
+fn landscape(a: &LandscapeArgs) -> Result<()> {
+    let w = world(&a.channel.world)?;
+    let r = resolve(&w, &a.channel)?;
+    let holding = holding_mask(&w, &a.holding)?;
+    let probe = r.e.landscape_state(0, 0, holding);
+    let h = horizon_for(&w, &a.channel, r.tool, &probe);
+    let l =
+        r.e.landscape(r.tool, &r.set, h, holding, a.channel.method.into())?;
+    let tool_name = r.tool.name(&w);
+    let set = set_name(&w, &r.set);
+    if let Some(path) = &a.png {
+        let rock: Vec<Vec<bool>> = (0..w.height)
+            .map(|y| {
+                (0..w.width)
+                    .map(|x| w.terrain(x as i32, y as i32) == fulcrum_shared::Terrain::Rock)
+                    .collect()
+            })
+            .collect();
+        let glyphs: Vec<Vec<Option<char>>> = (0..w.height)
+            .map(|y| {
+                (0..w.width)
+                    .map(|x| {
+                        let g = w.glyph_at(&probe_initial(&w, holding), x, y);
+                        (g != '.' && g != '#' && g != '@').then_some(g)
+                    })
+                    .collect()
+            })
+            .collect();
+        let title = format!(
+            "{}: E^{h} {tool_name} -> {set}, holding {}",
+            w.name,
+            if a.holding.is_empty() {
+                "nothing"
+            } else {
+                &a.holding
+            }
+        );
+        plot::heatmap_png(
+            path,
+            &plot::Heatmap {
+                title: &title,
+                values: &l.values,
+                rock: &rock,
+                glyphs: Some(&glyphs),
+                unit: "bits",
+            },
+        )
+        .with_context(|| format!("cannot write the landscape picture {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    if a.channel.json {
+        let v = json!({
+            "world": w.name,
+            "tool": tool_name,
+            "objects": set_objects(&w, &r.set),
+            "horizon": h,
+            "holding": a.holding.split(',').filter(|t| !t.is_empty()).collect::<Vec<_>>(),
+            "width": w.width,
+            "height": w.height,
+            "values": l.values,
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{}: E^{h} {tool_name} -> {set}, holding {} (bits; a glyph or '..' = no such state)",
+        w.name,
+        if a.holding.is_empty() {
+            "nothing"
+        } else {
+            &a.holding
+        }
+    );
+    let colour = std::io::stdout().is_terminal();
+    let max = l
+        .values
+        .iter()
+        .flatten()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(*v));
+    let init = probe_initial(&w, holding);
+    for (y, row) in l.values.iter().enumerate() {
+        let mut line = String::new();
+        for (x, v) in row.iter().enumerate() {
+            let cell = match v {
+                Some(v) => {
+                    let txt = format!("{v:>5.2}");
+                    if colour {
+                        format!("\x1b[38;5;{}m{txt}\x1b[0m", ansi_colour(*v, max))
+                    } else {
+                        txt
+                    }
+                }
+                None => {
+                    let g = w.glyph_at(&init, x, y);
+                    if g == '#' {
+                        "  ###".to_string()
+                    } else if g == '@' || g == '.' {
+                        "   ..".to_string()
+                    } else {
+                        format!("    {g}")
+                    }
+                }
+            };
+            line.push_str(&cell);
+        }
+        println!("{line}");
+    }
+    Ok(())
+}
+
+/// The initial state with an inventory, for drawing what lies where.
+fn probe_initial(w: &World, holding: u16) -> State {
+    let mut s = w.initial;
+    s.inventory = holding;
+    // Draw no agent: the landscape is over the agent's cell.
+    s.x = u8::MAX;
+    s.y = u8::MAX;
+    s
+}
+
+/// An xterm-256 colour from dark blue (0) to yellow (max).
+fn ansi_colour(v: f64, max: f64) -> u8 {
+    const RAMP: [u8; 6] = [240, 25, 31, 37, 78, 226];
+    if max <= 0.0 || v <= 0.0 {
+        return RAMP[0];
+    }
+    let i = ((v / max) * (RAMP.len() - 1) as f64).round() as usize;
+    RAMP[i.clamp(1, RAMP.len() - 1)]
+}
+
+fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
+    match set {
+        ObjectSet::Agent => vec!["agent".to_string()],
+        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+    }
+}
+
+fn trace(a: &TraceArgs) -> Result<()> {
+    let w = world(&a.channel.world)?;
+    let mut actions = Vec::new();
+    for name in a
+        .actions
+        .split(',')
+        .map(str::trim)
+        .filter(|s| !s.is_empty())
+    {
+        match w.parse_action(name) {
+            Some(x) => actions.push(x),
+            None => {
+                return bad(format!(
+                    "--actions: unknown action '{name}' (N, E, S, W, apply, or a tool: {})",
+                    w.tool_list()
+                ))
+            }
+        }
+    }
+    let r = resolve(&w, &a.channel)?;
+    // With --horizon one table serves; else the held/not-held pair, chosen per step.
+    let (hu, he) = match a.channel.horizon {
+        Some(h) => (h, h),
+        None => (
+            w.empowerment.horizon_unequipped,
+            w.empowerment.horizon_equipped,
+        ),
+    };
+    let tu = r.e.trace(r.tool, &r.set, hu, &actions)?;
+    let te = if he == hu {
+        None
+    } else {
+        Some(r.e.trace(r.tool, &r.set, he, &actions)?)
+    };
+    let steps: Vec<(Option<u8>, State, f64, u32)> = tu
+        .iter()
+        .enumerate()
+        .map(|(t, s)| match &te {
+            Some(te) if r.tool.held(&s.state) => (s.action, s.state, te[t].value, he),
+            _ => (s.action, s.state, s.value, hu),
+        })
+        .collect();
+    let tool_name = r.tool.name(&w);
+    let set = set_name(&w, &r.set);
+    // The first static object of D, drawn per step as in the paper's Fig. 12.
+    let cat_obj = match &r.set {
+        ObjectSet::Objects(v) => v
+            .iter()
+            .copied()
+            .find(|&i| w.objects[i].kind != ObjectKind::Boulder),
+        ObjectSet::Agent => None,
+    };
+    if let Some(path) = &a.png {
+        let values: Vec<f64> = steps.iter().map(|s| s.2).collect();
+        let labels: Vec<Option<String>> = steps
+            .iter()
+            .map(|s| s.0.map(|x| w.action_name(x)))
+            .collect();
+        let cat = cat_obj.map(|i| {
+            let names: Vec<String> = w.objects[i]
+                .kind
+                .condition_names()
+                .iter()
+                .map(|s| s.to_string())
+                .collect();
+            let idx: Vec<usize> = steps
+                .iter()
+                .map(|s| {
+                    let c = w.cond(&s.1, i) as usize;
+                    // Conditions are coded 0 intact/closed, 1 open, 2 destroyed; kinds
+                    // without an open state list two names.
+                    if names.len() == 2 {
+                        c.min(1)
+                    } else {
+                        c
+                    }
+                })
+                .collect();
+            (w.objects[i].name.clone(), names, idx)
+        });
+        let title = format!("{}: E^h {tool_name} -> {set} along the actions", w.name);
+        let vlabel = match a.channel.horizon {
+            Some(h) => format!("E^{h} (bits)"),
+            None => format!("E^{hu}/E^{he} (bits)"),
+        };
+        plot::trace_png(
+            path,
+            &plot::Trace {
+                title: &title,
+                value_label: &vlabel,
+                values: &values,
+                actions: &labels,
+                category: cat
+                    .as_ref()
+                    .map(|(n, names, idx)| (n.as_str(), names.as_slice(), idx.as_slice())),
+            },
+        )
+        .with_context(|| format!("cannot write the trace picture {}", path.display()))?;
+        eprintln!("wrote {}", path.display());
+    }
+    if a.channel.json {
+        let v = json!({
+            "world": w.name,
+            "tool": tool_name,
+            "objects": set_objects(&w, &r.set),
+            "steps": steps.iter().enumerate().map(|(t, s)| json!({
+                "t": t,
+                "action": s.0.map(|x| w.action_name(x)),
+                "value": s.2,
+                "horizon": s.3,
+                "state": w.describe(&s.1),
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "{}: E^h {tool_name} -> {set} along {} actions",
+        w.name,
+        actions.len()
+    );
+    println!(
+        "{:>4}  {:<12} {:>3} {:>9}  state",
+        "t", "action", "h", "bits"
+    );
+    for (t, s) in steps.iter().enumerate() {
+        let act = s.0.map_or("-".to_string(), |x| w.action_name(x));
+        println!(
+            "{t:>4}  {act:<12} {:>3} {:>9.6}  {}",
+            s.3,
+            s.2,
+            w.describe(&s.1)
+        );
+    }
+    Ok(())
+}
+
+fn query(a: &QueryArgs) -> Result<()> {
+    let w = world(&a.channel.world)?;
+    let lines: Vec<(String, String)> = match (&a.state, &a.states_file) {
+        (Some(s), _) => vec![("--state".to_string(), s.clone())],
+        (None, Some(p)) => {
+            let text = std::fs::read_to_string(p).map_err(|e| {
+                crate::commands::BadInput(format!("cannot read --states-file {}: {e}", p.display()))
+            })?;
+            text.lines()
+                .enumerate()
+                .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+                .map(|(i, l)| (format!("{}:{}", p.display(), i + 1), l.to_string()))
+                .collect()
+        }
+        (None, None) => return bad("give --state or --states-file"),
+    };
+    // Parse every state before any computation: a bad line costs nothing.
+    let mut states = Vec::with_capacity(lines.len());
+    for (place, text) in &lines {
+        let s = w
+            .parse_state(text)
+            .map_err(|e| crate::commands::BadInput(format!("{place}: {e}")))?;
+        states.push(s);
+    }
+    let r = resolve(&w, &a.channel)?;
+    let method: Method = a.channel.method.into();
+    let mut values = Vec::with_capacity(states.len());
+    // One table per distinct horizon, shared by all states that use it.
+    let mut tables: Vec<(u32, Vec<f64>)> = Vec::new();
+    for (s, (place, _)) in states.iter().zip(&lines) {
+        let h = horizon_for(&w, &a.channel, r.tool, s);
+        let id =
+            r.e.state_id(s)
+                .map_err(|e| crate::commands::BadInput(format!("{place}: {e}")))?;
+        let v = match method {
+            Method::Dp => {
+                if !tables.iter().any(|t| t.0 == h) {
+                    tables.push((h, r.e.values(r.tool, &r.set, h, method)?));
+                }
+                tables.iter().find(|t| t.0 == h).expect("made above").1[id as usize]
+            }
+            Method::Enumerate => r.e.query(s, r.tool, &r.set, h, method)?,
+        };
+        values.push((v, h));
+    }
+    if a.channel.json {
+        let v = if a.state.is_some() {
+            json!({"value": values[0].0, "horizon": values[0].1, "tool": r.tool.name(&w), "objects": set_objects(&w, &r.set)})
+        } else {
+            json!({
+                "tool": r.tool.name(&w),
+                "objects": set_objects(&w, &r.set),
+                "values": values.iter().zip(&states).map(|(v, s)| json!({"state": w.describe(s), "value": v.0, "horizon": v.1})).collect::<Vec<_>>(),
+            })
+        };
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    for ((v, h), s) in values.iter().zip(&states) {
+        println!(
+            "{v:.6} bits  (E^{h} {} -> {})  {}",
+            r.tool.name(&w),
+            set_name(&w, &r.set),
+            w.describe(s)
+        );
+    }
+    Ok(())
+}

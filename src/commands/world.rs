@@ -1,0 +1,146 @@
+//! `fulcrum world show` and `fulcrum world generate`.
+
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use fulcrum_shared::generate::{generate, GenParams};
+use fulcrum_shared::{parse_world, ObjectSet, Task, ToolChoice, World};
+use serde_json::json;
+
+use crate::cli::{GenerateArgs, WorldCmd};
+use crate::commands::{engine, world};
+use crate::plot::write_atomic;
+
+/// Run a `world` subcommand.
+pub fn run(cmd: WorldCmd) -> Result<()> {
+    match cmd {
+        WorldCmd::Show { world: name, json } => show(&name, json),
+        WorldCmd::Generate(a) => gen(&a),
+    }
+}
+
+fn task_text(w: &World) -> String {
+    match &w.task {
+        Task::None => "none".to_string(),
+        Task::Destroy(v) => format!(
+            "destroy {}",
+            v.iter()
+                .map(|&i| w.objects[i].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        Task::Push(b) => format!("push {} onto a goal", w.objects[*b].name),
+    }
+}
+
+fn show(name: &str, as_json: bool) -> Result<()> {
+    let w = world(name)?;
+    let t0 = Instant::now();
+    let e = engine(&w)?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    let actions: Vec<String> = (0..w.num_actions() as u8)
+        .map(|a| w.action_name(a))
+        .collect();
+    let emp = &w.empowerment;
+    let tool = match emp.tool {
+        ToolChoice::Auto => "auto".to_string(),
+        ToolChoice::All => "all".to_string(),
+        ToolChoice::Tool(k) => w.tools[k].name.clone(),
+    };
+    let objects = emp.objects.as_ref().map(|s| match s {
+        ObjectSet::Agent => "agent".to_string(),
+        s => fulcrum_empowerment::set_name(&w, s),
+    });
+    if as_json {
+        let v = json!({
+            "world": w.name,
+            "width": w.width,
+            "height": w.height,
+            "max_steps": w.max_steps,
+            "map": w.render(&w.initial),
+            "tools": w.tools.iter().map(|t| json!({"name": t.name, "kind": t.kind, "letter": t.letter.to_string(), "x": t.pos.0, "y": t.pos.1})).collect::<Vec<_>>(),
+            "objects": w.objects.iter().map(|o| json!({"name": o.name, "kind": o.kind.name(), "x": o.pos.0, "y": o.pos.1})).collect::<Vec<_>>(),
+            "actions": actions,
+            "task": task_text(&w),
+            "empowerment": {"tool": tool, "objects": objects, "horizon_unequipped": emp.horizon_unequipped, "horizon_equipped": emp.horizon_equipped, "beta": emp.beta},
+            "states": e.space.len(),
+            "normal_states": e.normal_states(),
+            "hash": format!("{:016x}", w.content_hash()),
+        });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    println!(
+        "world {} ({}x{}, episodes of at most {} steps)",
+        w.name, w.width, w.height, w.max_steps
+    );
+    print!("{}", w.render(&w.initial));
+    let tools: Vec<String> = w
+        .tools
+        .iter()
+        .map(|t| format!("{} {} ({},{})", t.letter, t.name, t.pos.0, t.pos.1))
+        .collect();
+    let objs: Vec<String> = w
+        .objects
+        .iter()
+        .map(|o| format!("{} ({},{})", o.name, o.pos.0, o.pos.1))
+        .collect();
+    println!(
+        "tools        {}",
+        if tools.is_empty() {
+            "none".into()
+        } else {
+            tools.join(", ")
+        }
+    );
+    println!(
+        "objects      {}",
+        if objs.is_empty() {
+            "none".into()
+        } else {
+            objs.join(", ")
+        }
+    );
+    println!(
+        "actions      {} (|A| = {})",
+        actions.join(" "),
+        actions.len()
+    );
+    println!("task         {}", task_text(&w));
+    println!(
+        "empowerment  tool {tool}, objects {}, h = {} unequipped / {} equipped, beta {}",
+        objects.unwrap_or_else(|| "none".into()),
+        emp.horizon_unequipped,
+        emp.horizon_equipped,
+        emp.beta
+    );
+    println!(
+        "states       {} ({} normal-mode), enumerated in {ms:.1} ms",
+        e.space.len(),
+        e.normal_states()
+    );
+    Ok(())
+}
+
+fn gen(a: &GenerateArgs) -> Result<()> {
+    let text = generate(&GenParams {
+        width: a.width,
+        height: a.height,
+        tools: a.tools,
+        objects: a.objects,
+        rock: a.rock,
+        seed: a.seed,
+    })?;
+    // A generated file must always load: check before handing it out.
+    parse_world(&text, "generated")
+        .context("the generator made a world that does not parse (a bug)")?;
+    match &a.out {
+        Some(p) => {
+            write_atomic(p, text.as_bytes())
+                .with_context(|| format!("cannot write {}", p.display()))?;
+            eprintln!("wrote {}", p.display());
+        }
+        None => print!("{text}"),
+    }
+    Ok(())
+}
