@@ -224,12 +224,14 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         let mut cs = letter.chars();
         let l = match (cs.next(), cs.next()) {
             (Some(l), None) if l.is_ascii_lowercase() => l,
-            _ => return Err(cx.at(
-                off,
-                format!(
+            _ => {
+                return Err(cx.at(
+                    off,
+                    format!(
                     "[tools] key '{letter}' must be one lowercase letter (the tool's map glyph)"
                 ),
-            )),
+                ))
+            }
         };
         let k = kind.get_ref();
         if k.is_empty()
