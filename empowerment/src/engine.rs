@@ -389,11 +389,11 @@ impl<'w> Engine<'w> {
     }
 }
 
-/// Refuse enumeration beyond about 10^11 steps.
+/// Refuse enumeration beyond about 2 * 10^9 steps (minutes of work).
 fn check_enumerable(actions: usize, horizons: &[u32], states: usize) -> Result<(), EngineError> {
     let h = horizons.iter().copied().max().unwrap_or(0);
     let per_state = (actions as f64).powi(h as i32);
-    if per_state * states.max(1) as f64 > 1e11 || h > fulcrum_shared::MAX_HORIZON {
+    if per_state * states.max(1) as f64 > 2e9 || h > fulcrum_shared::MAX_HORIZON {
         return Err(EngineError::EnumerationTooLong {
             h,
             actions,

@@ -9,9 +9,16 @@ pub struct Limits {
 }
 
 impl Default for Limits {
-    /// Half of the memory available now (`MemAvailable` in /proc/meminfo), or 4 GiB where
-    /// that cannot be read.
+    /// `FULCRUM_MAX_MEMORY` (bytes, or with a unit: `512MiB`, `8GiB`) when set; else half
+    /// of the memory available now (`MemAvailable` in /proc/meminfo), or 4 GiB where that
+    /// cannot be read.
     fn default() -> Self {
+        if let Some(b) = std::env::var("FULCRUM_MAX_MEMORY")
+            .ok()
+            .and_then(|v| parse_bytes(&v))
+        {
+            return Limits { max_bytes: b };
+        }
         let avail = std::fs::read_to_string("/proc/meminfo")
             .ok()
             .and_then(|t| {
@@ -36,5 +43,35 @@ pub fn human_bytes(b: usize) -> String {
         format!("{:.1} MiB", b / (1 << 20) as f64)
     } else {
         format!("{:.0} KiB", (b / 1024.0).ceil())
+    }
+}
+
+/// Parse `123`, `64KiB`, `512MiB`, `8GiB` (also KB/MB/GB as powers of 1024).
+pub fn parse_bytes(text: &str) -> Option<usize> {
+    let t = text.trim();
+    let split = t.find(|c: char| !c.is_ascii_digit()).unwrap_or(t.len());
+    let (num, unit) = t.split_at(split);
+    let n: usize = num.parse().ok()?;
+    let mul: usize = match unit.trim() {
+        "" | "B" => 1,
+        "KiB" | "KB" | "K" => 1 << 10,
+        "MiB" | "MB" | "M" => 1 << 20,
+        "GiB" | "GB" | "G" => 1 << 30,
+        _ => return None,
+    };
+    n.checked_mul(mul)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_sizes() {
+        assert_eq!(parse_bytes("64MiB"), Some(64 << 20));
+        assert_eq!(parse_bytes("2GiB"), Some(2 << 30));
+        assert_eq!(parse_bytes("1000"), Some(1000));
+        assert_eq!(parse_bytes("lots"), None);
+        assert_eq!(human_bytes(64 << 20), "64.0 MiB");
     }
 }

@@ -1,0 +1,466 @@
+//! The command line: JSON shapes of DESIGN.md, values of worlds/EXPECTED.md through the
+//! binary, bad input (one sentence, exit code 2), and files written.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn fulcrum(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .args(args)
+        .output()
+        .expect("the fulcrum binary runs")
+}
+
+fn json(args: &[&str]) -> Value {
+    let out = fulcrum(args);
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("valid JSON on stdout")
+}
+
+/// A fresh directory for one test.
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fulcrum-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs and fails with exit code 2 and one line on stderr mentioning `needle`.
+fn bad_input(args: &[&str], needle: &str) {
+    let out = fulcrum(args);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+    assert!(
+        err.contains(needle),
+        "{args:?}: '{err}' should mention '{needle}'"
+    );
+    assert!(
+        !err.contains("panicked") && !err.contains("backtrace"),
+        "{err}"
+    );
+}
+
+#[test]
+fn matrix_json_exp1_tree() {
+    let v = json(&[
+        "empowerment",
+        "matrix",
+        "exp1-tree",
+        "--horizon-unequipped",
+        "8",
+        "--horizon-equipped",
+        "3",
+        "--joint",
+        "tree+wall",
+        "--json",
+    ]);
+    assert_eq!(v["world"], "exp1-tree");
+    assert_eq!(v["states"], 8880);
+    assert_eq!(v["normal_states"], 2052);
+    assert_eq!(
+        v["tools"],
+        serde_json::json!(["axe", "pickaxe", "tin_opener", "key"])
+    );
+    assert_eq!(
+        v["columns"],
+        serde_json::json!(["tree", "wall", "tree+wall"])
+    );
+    let m = v["matrix"].as_array().unwrap();
+    // EXPECTED.md: 96/2052 and 72/2052.
+    assert!((m[0][0].as_f64().unwrap() - 96.0 / 2052.0).abs() < 1e-12);
+    assert!((m[1][1].as_f64().unwrap() - 72.0 / 2052.0).abs() < 1e-12);
+    assert_eq!(m[2][0].as_f64(), Some(0.0));
+    assert_eq!(v["selection"]["tree"], "axe");
+    assert_eq!(v["selection"]["wall"], "pickaxe");
+    assert_eq!(v["selection"]["tree+wall"], "axe");
+    assert!(v["elapsed_ms"].as_f64().unwrap() > 0.0);
+}
+
+#[test]
+fn matrix_selects_none_for_a_zero_column() {
+    // In exp1-tree the tin opener and key act on nothing: a column of the key's own
+    // world objects still has the axe; `--horizon 0` makes every entry zero.
+    let v = json(&[
+        "empowerment",
+        "matrix",
+        "exp1-tree",
+        "--horizon",
+        "0",
+        "--json",
+    ]);
+    assert_eq!(v["selection"]["tree"], Value::Null);
+}
+
+#[test]
+fn matrix_human_output_marks_the_selection() {
+    let out = fulcrum(&["empowerment", "matrix", "exp2", "--joint", "boulder+door"]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("0.209375*"), "{text}");
+    assert!(
+        text.contains("selection: boulder -> wand, door -> wand, boulder+door -> wand"),
+        "{text}"
+    );
+}
+
+#[test]
+fn landscape_json_exp1_beacon() {
+    let v = json(&[
+        "empowerment",
+        "landscape",
+        "exp1-tree",
+        "--tool",
+        "axe",
+        "--objects",
+        "tree",
+        "--horizon",
+        "8",
+        "--json",
+    ]);
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(12), Some(8))
+    );
+    assert_eq!(v["tool"], "axe");
+    assert_eq!(v["objects"], serde_json::json!(["tree"]));
+    assert_eq!(v["horizon"], 8);
+    let vals = &v["values"];
+    assert_eq!(vals[2][3].as_f64(), Some(1.0));
+    assert_eq!(vals[1][4].as_f64(), Some(1.0));
+    assert!(vals[2][4].is_null(), "the axe's own cell has no value");
+    assert_eq!(vals[5][5].as_f64(), Some(0.0));
+}
+
+#[test]
+fn landscape_default_horizon_follows_the_inventory() {
+    // exp1-tree's [empowerment]: 8 unequipped, 3 equipped.
+    let v = json(&[
+        "empowerment",
+        "landscape",
+        "exp1-tree",
+        "--tool",
+        "axe",
+        "--objects",
+        "tree",
+        "--holding",
+        "axe",
+        "--json",
+    ]);
+    assert_eq!(v["horizon"], 3);
+    assert_eq!(v["values"][2][8].as_f64(), Some(1.0));
+}
+
+#[test]
+fn trace_json_exp3_axe() {
+    let v = json(&[
+        "empowerment",
+        "trace",
+        "exp3",
+        "--actions",
+        "S,E,E,E,E,N,N,apply,axe,E",
+        "--tool",
+        "axe",
+        "--objects",
+        "door",
+        "--horizon",
+        "3",
+        "--json",
+    ]);
+    let steps = v["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 11);
+    assert_eq!(steps[0]["t"], 0);
+    assert!(steps[0]["action"].is_null());
+    assert_eq!(steps[1]["action"], "S");
+    let vals: Vec<f64> = steps.iter().map(|s| s["value"].as_f64().unwrap()).collect();
+    assert_eq!(&vals[7..], &[1.0, 1.0, 1.0, 0.0]);
+}
+
+#[test]
+fn query_local() {
+    let v = json(&[
+        "empowerment",
+        "query",
+        "exp3",
+        "--state",
+        "agent=5,3 holding=key door=open",
+        "--tool",
+        "key",
+        "--objects",
+        "door",
+        "--horizon",
+        "3",
+        "--json",
+    ]);
+    assert_eq!(v["value"].as_f64(), Some(1.0));
+    // The closed form: with the agent as the object, the cells within n = 2 steps of
+    // (3,3) number 2n^2 + 2n + 1 = 13 (all floor; the axe's cell can be entered).
+    let v = json(&[
+        "empowerment",
+        "query",
+        "exp1-tree",
+        "--state",
+        "agent=3,3",
+        "--tool",
+        "all",
+        "--objects",
+        "agent",
+        "--horizon",
+        "2",
+        "--json",
+    ]);
+    assert!((v["value"].as_f64().unwrap() - 13f64.log2()).abs() < 1e-12);
+}
+
+#[test]
+fn query_states_file() {
+    let d = temp_dir("states");
+    let f = d.join("states.txt");
+    std::fs::write(
+        &f,
+        "# exp1-tree states\nagent=3,2\n\nagent=8,2 holding=axe\nagent=1,1\n",
+    )
+    .unwrap();
+    let v = json(&[
+        "empowerment",
+        "query",
+        "exp1-tree",
+        "--states-file",
+        f.to_str().unwrap(),
+        "--tool",
+        "axe",
+        "--objects",
+        "tree",
+        "--json",
+    ]);
+    let vals: Vec<f64> = v["values"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x["value"].as_f64().unwrap())
+        .collect();
+    // Next to the axe (h = 8): 1; next to the tree holding the axe (h = 3): 1; a corner: 0.
+    assert_eq!(vals, vec![1.0, 1.0, 0.0]);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn method_enumerate_agrees_through_the_cli() {
+    let a = json(&[
+        "empowerment",
+        "landscape",
+        "exp2",
+        "--tool",
+        "wand",
+        "--objects",
+        "boulder,door",
+        "--horizon",
+        "4",
+        "--holding",
+        "wand",
+        "--json",
+    ]);
+    let b = json(&[
+        "empowerment",
+        "landscape",
+        "exp2",
+        "--tool",
+        "wand",
+        "--objects",
+        "boulder,door",
+        "--horizon",
+        "4",
+        "--holding",
+        "wand",
+        "--method",
+        "enumerate",
+        "--json",
+    ]);
+    assert_eq!(a["values"], b["values"]);
+}
+
+#[test]
+fn world_show_and_generate() {
+    let v = json(&["world", "show", "exp2", "--json"]);
+    assert_eq!(v["states"], 10988);
+    assert_eq!(v["actions"].as_array().unwrap().len(), 9);
+    let d = temp_dir("gen");
+    let f = d.join("g.toml");
+    let out = fulcrum(&[
+        "world",
+        "generate",
+        "--width",
+        "9",
+        "--height",
+        "7",
+        "--tools",
+        "2",
+        "--objects",
+        "2",
+        "--seed",
+        "5",
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = json(&["world", "show", f.to_str().unwrap(), "--json"]);
+    assert_eq!(
+        (v["width"].as_u64(), v["height"].as_u64()),
+        (Some(9), Some(7))
+    );
+    assert_eq!(v["tools"].as_array().unwrap().len(), 2);
+    assert_eq!(v["objects"].as_array().unwrap().len(), 2);
+    // Same seed, same file.
+    let a = fulcrum(&["world", "generate", "--seed", "5"]).stdout;
+    let b = fulcrum(&["world", "generate", "--seed", "5"]).stdout;
+    assert_eq!(a, b);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn bad_input_is_one_sentence_and_exit_code_2() {
+    bad_input(
+        &["empowerment", "matrix", "no-such-world"],
+        "unknown world 'no-such-world'",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "landscape",
+            "exp1-tree",
+            "--tool",
+            "hammer",
+            "--objects",
+            "tree",
+        ],
+        "unknown tool 'hammer'",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "landscape",
+            "exp1-tree",
+            "--tool",
+            "axe",
+            "--objects",
+            "rock",
+        ],
+        "unknown object 'rock'",
+    );
+    bad_input(
+        &["empowerment", "matrix", "exp1-tree", "--horizon", "1000"],
+        "horizon 1000 is too large",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "query",
+            "exp1-tree",
+            "--state",
+            "agent=0,0",
+            "--tool",
+            "axe",
+            "--objects",
+            "tree",
+        ],
+        "rock",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "query",
+            "exp1-tree",
+            "--state",
+            "agent=4,2",
+            "--tool",
+            "axe",
+            "--objects",
+            "tree",
+        ],
+        "picked up",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "trace",
+            "exp3",
+            "--actions",
+            "N,jump",
+            "--tool",
+            "key",
+            "--objects",
+            "door",
+        ],
+        "unknown action 'jump'",
+    );
+    bad_input(
+        &[
+            "empowerment",
+            "matrix",
+            "exp2",
+            "--horizon",
+            "9",
+            "--method",
+            "enumerate",
+        ],
+        "--method enumerate",
+    );
+    bad_input(&["world", "generate", "--width", "2"], "--width 2");
+    // A world file with a mistake: file, line and column.
+    let d = temp_dir("badworld");
+    let f = d.join("bad.toml");
+    std::fs::write(
+        &f,
+        "name = \"bad\"\nmap = \"\"\"\n#####\n#@.X#\n#####\n\"\"\"\n",
+    )
+    .unwrap();
+    bad_input(
+        &["world", "show", f.to_str().unwrap()],
+        "bad.toml:4:4: unknown glyph 'X'",
+    );
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn a_state_space_over_the_memory_limit_is_refused_before_it_starts() {
+    // A 64x64 room with many boulders cannot be enumerated on any machine: the refusal
+    // names the estimate.
+    let d = temp_dir("huge");
+    let f = d.join("huge.toml");
+    let out = fulcrum(&[
+        "world",
+        "generate",
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--tools",
+        "16",
+        "--objects",
+        "16",
+        "--seed",
+        "1",
+        "--out",
+        f.to_str().unwrap(),
+    ]);
+    assert!(out.status.success());
+    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .args(["empowerment", "matrix", f.to_str().unwrap()])
+        .env("FULCRUM_MAX_MEMORY", "64MiB")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("over the memory limit of 64.0 MiB"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -1,0 +1,3 @@
+//! Tests of the `fulcrum` binary as a user runs it: one test binary, modules by topic.
+
+mod cli;
