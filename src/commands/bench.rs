@@ -99,12 +99,12 @@ pub fn big_world_params(quick: bool) -> GenParams {
         }
     } else {
         GenParams {
-            width: 16,
-            height: 16,
+            width: 14,
+            height: 14,
             tools: 4,
-            objects: 5,
+            objects: 4,
             rock: 0.0,
-            seed: 7,
+            seed: 3,
         }
     }
 }
