@@ -22,8 +22,36 @@ pub enum Command {
     /// Exact object empowerment: matrix, landscape, trace, query.
     #[command(subcommand)]
     Empowerment(EmpCmd),
+    /// Run the empowerment service for one world (until Ctrl-C or SIGTERM).
+    Serve(ServeArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
+}
+
+/// `fulcrum serve`
+#[derive(Debug, Args)]
+pub struct ServeArgs {
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    pub world: String,
+    /// Tool of the lookup table: a tool name, `all`, or `auto` (tool selection by the
+    /// matrix). Default: the world's [empowerment] tool.
+    #[arg(long)]
+    pub tool: Option<String>,
+    /// Objects of interest, joint: `a,b` or `agent`. Default: the world's.
+    #[arg(long)]
+    pub objects: Option<String>,
+    /// Horizon where the tool is not held (default: the world's).
+    #[arg(long)]
+    pub horizon_unequipped: Option<u32>,
+    /// Horizon where the tool is held (default: the world's).
+    #[arg(long)]
+    pub horizon_equipped: Option<u32>,
+    /// Service namespace: the service is `fulcrum/<namespace>/empowerment`.
+    #[arg(long, default_value = "default")]
+    pub namespace: String,
+    /// Memory for cached ad-hoc query tables, in MiB.
+    #[arg(long, default_value_t = 256)]
+    pub cache_mib: usize,
 }
 
 /// `fulcrum world ...`
@@ -180,6 +208,15 @@ pub struct QueryArgs {
     /// A file with one state description per line (blank lines and # comments skipped).
     #[arg(long, conflicts_with = "state")]
     pub states_file: Option<PathBuf>,
+    /// Ask a running service (`fulcrum serve`) instead of computing here.
+    #[arg(long)]
+    pub service: bool,
+    /// The service's namespace.
+    #[arg(long, default_value = "default", requires = "service")]
+    pub namespace: String,
+    /// Seconds to wait for the service to appear.
+    #[arg(long, default_value_t = 5.0, requires = "service")]
+    pub wait: f64,
 }
 
 /// `fulcrum bench`

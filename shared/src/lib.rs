@@ -16,6 +16,8 @@ pub mod env;
 pub mod generate;
 /// A fast hasher for state-keyed maps.
 pub mod hash;
+/// Shared-memory message layouts and service names.
+pub mod msg;
 /// World files: parsing and validation with file:line:col errors.
 pub mod parse;
 /// The packed state and its text form.

@@ -3,7 +3,7 @@
 use std::io::IsTerminal;
 use std::time::Instant;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use fulcrum_empowerment::{set_name, Engine, Method, ToolSel};
 use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
@@ -201,8 +201,7 @@ fn landscape(a: &LandscapeArgs) -> Result<()> {
                 glyphs: Some(&glyphs),
                 unit: "bits",
             },
-        )
-        .with_context(|| format!("cannot write the landscape picture {}", path.display()))?;
+        )?;
         eprintln!("wrote {}", path.display());
     }
     if a.channel.json {
@@ -389,8 +388,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
                     .as_ref()
                     .map(|(n, names, idx)| (n.as_str(), names.as_slice(), idx.as_slice())),
             },
-        )
-        .with_context(|| format!("cannot write the trace picture {}", path.display()))?;
+        )?;
         eprintln!("wrote {}", path.display());
     }
     if a.channel.json {

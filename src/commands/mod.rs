@@ -9,6 +9,7 @@ use crate::cli::{Command, MethodArg};
 
 pub mod bench;
 pub mod empowerment;
+pub mod serve;
 pub mod world;
 
 /// A mistake in what the user asked for: one sentence, exit code 2.
@@ -29,6 +30,20 @@ pub fn is_bad_input(e: &anyhow::Error) -> bool {
             || c.is::<fulcrum_shared::DescribeError>()
             || c.is::<fulcrum_shared::generate::GenError>()
             || c.is::<EngineError>()
+            || matches!(
+                c.downcast_ref::<fulcrum_empowerment::service::ServiceError>(),
+                Some(
+                    fulcrum_empowerment::service::ServiceError::AlreadyRunning(_)
+                        | fulcrum_empowerment::service::ServiceError::BadNamespace(_)
+                )
+            )
+            || matches!(
+                c.downcast_ref::<fulcrum_empowerment::service::ClientError>(),
+                Some(
+                    fulcrum_empowerment::service::ClientError::WrongWorld { .. }
+                        | fulcrum_empowerment::service::ClientError::Refused(_)
+                )
+            )
     })
 }
 
@@ -37,6 +52,7 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
     match cli.command {
         Command::World(c) => world::run(c),
         Command::Empowerment(c) => empowerment::run(c),
+        Command::Serve(a) => serve::run(&a),
         Command::Bench(a) => bench::run(a),
     }
 }

@@ -1,0 +1,93 @@
+//! `fulcrum serve`: the empowerment service for one world.
+
+use std::io::Write;
+use std::time::Duration;
+
+use anyhow::Result;
+use fulcrum_empowerment::service::{serve, ServeConfig, ServeExit, Tables};
+use fulcrum_empowerment::{set_name, Method, ToolSel};
+use fulcrum_shared::msg;
+
+use crate::cli::ServeArgs;
+use crate::commands::{bad, engine, objects_or_default, tool_sel, world};
+
+/// Run the service until SIGINT or SIGTERM.
+pub fn run(a: &ServeArgs) -> Result<()> {
+    if !msg::valid_namespace(&a.namespace) {
+        return bad(format!(
+            "--namespace '{}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'",
+            a.namespace
+        ));
+    }
+    let w = world(&a.world)?;
+    let set = objects_or_default(&w, a.objects.as_deref())?;
+    let e = engine(&w)?;
+    let tool = tool_sel(&w, &e, a.tool.as_deref(), &set)?;
+    let hu = a
+        .horizon_unequipped
+        .unwrap_or(w.empowerment.horizon_unequipped);
+    let he = a.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped);
+    for h in [hu, he] {
+        if h > fulcrum_shared::MAX_HORIZON {
+            return bad(format!(
+                "horizon {h} is too large: at most {}",
+                fulcrum_shared::MAX_HORIZON
+            ));
+        }
+    }
+    let auto = matches!(a.tool.as_deref(), Some("auto"))
+        || (a.tool.is_none() && w.empowerment.tool == fulcrum_shared::ToolChoice::Auto);
+    if auto {
+        // Log the column the selection came from.
+        let m = e.matrix(std::slice::from_ref(&set), hu, he, Method::Dp)?;
+        let col: Vec<String> = m
+            .tools
+            .iter()
+            .zip(&m.values)
+            .map(|(t, v)| format!("{t} {:.6}", v[0]))
+            .collect();
+        eprintln!(
+            "tool selection for {}: {} ({})",
+            set_name(&w, &set),
+            tool.name(&w),
+            col.join(", ")
+        );
+    }
+    let cfg = ServeConfig {
+        namespace: a.namespace.clone(),
+        tool,
+        objects: set.clone(),
+        horizon_unequipped: hu,
+        horizon_equipped: he,
+        cache_bytes: a.cache_mib << 20,
+        spin: Duration::from_micros(100),
+    };
+    let mut tables = Tables::new(e, cfg)?;
+    let (exit, stats) = serve(&mut tables, |d| {
+        println!(
+            "fulcrum serve: ready: world {} (hash {:016x}), {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
+            w.name,
+            d.world_hash,
+            d.states,
+            match tool {
+                ToolSel::All => "all".to_string(),
+                ToolSel::Tool(j) => w.tools[j].name.clone(),
+            },
+            set_name(&w, &set),
+            a.namespace
+        );
+        let _ = std::io::stdout().flush();
+    })?;
+    println!(
+        "fulcrum serve: stopped by {}: {} requests, {} states, {} refused",
+        if exit == ServeExit::Interrupt {
+            "SIGINT"
+        } else {
+            "SIGTERM"
+        },
+        stats.requests,
+        stats.states,
+        stats.refused
+    );
+    Ok(())
+}
