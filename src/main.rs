@@ -11,6 +11,7 @@ mod plot;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
+    fulcrum_empowerment::service::quiet_ipc_logs();
     tracing_subscriber::fmt()
         .with_env_filter(
             tracing_subscriber::EnvFilter::try_from_env("FULCRUM_LOG")

@@ -1,3 +1,4 @@
 //! Tests of the `fulcrum` binary as a user runs it: one test binary, modules by topic.
 
 mod cli;
+mod service;

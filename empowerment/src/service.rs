@@ -127,6 +127,12 @@ pub fn clean_dead_nodes() -> usize {
     n
 }
 
+/// Quiet iceoryx2's own logging (it warns once per process that no config file was
+/// loaded) unless `IOX2_LOG_LEVEL` asks for more.
+pub fn quiet_ipc_logs() {
+    set_log_level_from_env_or(LogLevel::Error);
+}
+
 fn node() -> Result<Node<ipc::Service>, ServiceError> {
     NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
@@ -739,6 +745,25 @@ impl Client {
         objects: u32,
         horizon: u32,
     ) -> Result<(), ClientError> {
+        let raw: Vec<[u8; msg::STATE_BYTES]> = states.iter().map(State::to_bytes).collect();
+        self.send_raw(k, &raw, tool, objects, horizon)
+    }
+
+    /// Send a request made of raw parts, unchecked (for tests and fuzzing: the service
+    /// must answer anything with a status). Collect the answer with [`Client::recv`].
+    pub fn send_raw(
+        &mut self,
+        k: u32,
+        states: &[[u8; msg::STATE_BYTES]],
+        tool: i32,
+        objects: u32,
+        horizon: u32,
+    ) -> Result<(), ClientError> {
+        if states.len() > MAX_BATCH || self.in_flight.len() >= MAX_IN_FLIGHT {
+            return Err(ClientError::Ipc(format!(
+                "at most {MAX_BATCH} states a request and {MAX_IN_FLIGHT} requests in flight"
+            )));
+        }
         let mut req = self
             .client
             .loan_uninit()
@@ -761,7 +786,7 @@ impl Client {
             std::ptr::addr_of_mut!((*p).seq).write(self.seq);
             let slots = std::ptr::addr_of_mut!((*p).states) as *mut [u8; msg::STATE_BYTES];
             for (i, s) in states.iter().enumerate() {
-                slots.add(i).write(s.to_bytes());
+                slots.add(i).write(*s);
             }
             req.assume_init()
         };

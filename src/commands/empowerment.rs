@@ -452,6 +452,9 @@ fn query(a: &QueryArgs) -> Result<()> {
             .map_err(|e| crate::commands::BadInput(format!("{place}: {e}")))?;
         states.push(s);
     }
+    if a.service {
+        return query_service(&w, a, &states, &lines);
+    }
     let r = resolve(&w, &a.channel)?;
     let method: Method = a.channel.method.into();
     let mut values = Vec::with_capacity(states.len());
@@ -491,6 +494,115 @@ fn query(a: &QueryArgs) -> Result<()> {
             "{v:.6} bits  (E^{h} {} -> {})  {}",
             r.tool.name(&w),
             set_name(&w, &r.set),
+            w.describe(s)
+        );
+    }
+    Ok(())
+}
+
+/// `query --service`: ask a running `fulcrum serve` instead of computing here. With
+/// tool, objects and horizon all given it is a QUERY; otherwise the service's own table
+/// (LOOKUP), whose configuration it reports.
+fn query_service(
+    w: &World,
+    a: &QueryArgs,
+    states: &[State],
+    lines: &[(String, String)],
+) -> Result<()> {
+    use fulcrum_empowerment::service::{mask_set, object_mask, Ask, Client};
+    use fulcrum_shared::msg::{self, item, TOOL_ALL};
+    if !msg::valid_namespace(&a.namespace) {
+        return bad(format!(
+            "--namespace '{}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'",
+            a.namespace
+        ));
+    }
+    let wait = std::time::Duration::from_secs_f64(a.wait.clamp(0.0, 3600.0));
+    let mut client = Client::connect(&a.namespace, w, wait)?;
+    let d = *client.describe();
+    let ch = &a.channel;
+    let explicit = ch.tool.is_some() || ch.objects.is_some() || ch.horizon.is_some();
+    let (ask, tool_name, set) = if explicit {
+        let tool = match ch.tool.as_deref() {
+            Some("all") => TOOL_ALL,
+            Some("auto") => return bad("--tool auto is not available with --service: name the tool, or leave tool, objects and horizon out to use the service's table"),
+            Some(t) => match w.tool_index(t) {
+                Some(k) => k as i32,
+                None => return bad(format!("unknown tool '{t}' in world '{}' (tools: {}; or all)", w.name, w.tool_list())),
+            },
+            None => d.tool,
+        };
+        let set = match &ch.objects {
+            Some(o) => object_set(w, o)?,
+            None => mask_set(w, d.object_mask).unwrap_or(ObjectSet::Agent),
+        };
+        let Some(horizon) = ch.horizon else {
+            return bad("with --service, give --horizon together with --tool or --objects (or none of them to use the service's table)");
+        };
+        let name = if tool == TOOL_ALL {
+            "all".to_string()
+        } else {
+            w.tools[tool as usize].name.clone()
+        };
+        (
+            Ask::Query {
+                tool,
+                objects: object_mask(&set),
+                horizon,
+            },
+            name,
+            set,
+        )
+    } else {
+        let set = mask_set(w, d.object_mask).unwrap_or(ObjectSet::Agent);
+        let name = if d.tool == TOOL_ALL {
+            "all".to_string()
+        } else {
+            w.tools[d.tool as usize].name.clone()
+        };
+        (Ask::Lookup, name, set)
+    };
+    let batch = client.values(ask, states, 256)?;
+    for (i, st) in batch.status.iter().enumerate() {
+        if *st != item::OK {
+            return bad(format!(
+                "{}: the state '{}' is not reachable from the initial state of world '{}'",
+                lines[i].0,
+                w.describe(&states[i]),
+                w.name
+            ));
+        }
+    }
+    let horizon_of = |s: &State| match ask {
+        Ask::Query { horizon, .. } => horizon,
+        Ask::Lookup => {
+            if d.tool >= 0 && s.holds(d.tool as usize) {
+                d.horizon_equipped
+            } else {
+                d.horizon_unequipped
+            }
+        }
+    };
+    if ch.json {
+        let v = if a.state.is_some() {
+            json!({"value": batch.values[0] as f64, "horizon": horizon_of(&states[0]), "tool": tool_name, "objects": set_objects(w, &set), "service": client.namespace()})
+        } else {
+            json!({
+                "tool": tool_name,
+                "objects": set_objects(w, &set),
+                "service": client.namespace(),
+                "values": batch.values.iter().zip(states).map(|(v, s)| json!({"state": w.describe(s), "value": *v as f64, "horizon": horizon_of(s)})).collect::<Vec<_>>(),
+            })
+        };
+        println!("{}", serde_json::to_string_pretty(&v)?);
+        return Ok(());
+    }
+    for (v, s) in batch.values.iter().zip(states) {
+        println!(
+            "{v:.6} bits  (E^{} {tool_name} -> {}, service {})  {}",
+            horizon_of(s),
+            set_name(w, &set),
+            client.namespace(),
             w.describe(s)
         );
     }

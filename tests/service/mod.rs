@@ -1,0 +1,405 @@
+//! The empowerment service across real processes and real iceoryx2 shared memory:
+//! `fulcrum serve` as a child process, clients from this test process (the library)
+//! and from the CLI. Each test has its own namespace.
+
+use std::io::{BufRead, BufReader};
+use std::process::{Child, Command, Stdio};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use fulcrum_empowerment::service::{Ask, Client, ClientError};
+use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
+use fulcrum_shared::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
+use fulcrum_shared::{load_world, ObjectSet, State, World};
+use rand::{Rng, SeedableRng};
+
+/// A unique namespace for one test.
+fn namespace(test: &str) -> String {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    format!("t-{test}-{}-{nanos}", std::process::id())
+}
+
+/// A running `fulcrum serve`, stopped (SIGINT, then SIGKILL) when dropped.
+struct Serve {
+    child: Child,
+    ready: String,
+}
+
+impl Serve {
+    fn start(world: &str, ns: &str, extra: &[&str]) -> Serve {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+            .args(["serve", world, "--namespace", ns])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("fulcrum serve starts");
+        let stdout = child.stdout.take().unwrap();
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(stdout).lines().map_while(Result::ok) {
+                let _ = tx.send(line);
+            }
+        });
+        let deadline = Instant::now() + Duration::from_secs(30);
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            match rx.recv_timeout(left) {
+                Ok(l) if l.contains("ready") => return Serve { child, ready: l },
+                Ok(_) => {}
+                Err(_) => {
+                    let _ = child.kill();
+                    panic!("fulcrum serve {world} did not become ready");
+                }
+            }
+        }
+    }
+
+    fn signal(&self, sig: &str) {
+        let ok = Command::new("kill")
+            .args([sig, &self.child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(ok.success());
+    }
+
+    /// Wait for exit with a deadline.
+    fn wait(&mut self, limit: Duration) -> Option<std::process::ExitStatus> {
+        let t0 = Instant::now();
+        while t0.elapsed() < limit {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                return Some(s);
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        None
+    }
+}
+
+impl Drop for Serve {
+    fn drop(&mut self) {
+        if self.child.try_wait().ok().flatten().is_none() {
+            self.signal("-INT");
+            if self.wait(Duration::from_secs(5)).is_none() {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+            }
+        }
+    }
+}
+
+/// `n` random states of the world's state space (seeded).
+fn random_states(engine: &Engine, n: usize, seed: u64) -> Vec<State> {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (0..n)
+        .map(|_| {
+            *engine
+                .space
+                .state(rng.random_range(0..engine.space.len() as u32))
+        })
+        .collect()
+}
+
+fn tool(w: &World) -> ToolSel {
+    // The tools of the canonical worlds' [empowerment] sections after selection.
+    match w.name.as_str() {
+        "exp1-tree" => ToolSel::Tool(0),
+        "exp1-wall" => ToolSel::Tool(1),
+        "exp2" => ToolSel::Tool(0),
+        _ => ToolSel::Tool(1), // exp3 names the axe
+    }
+}
+
+#[test]
+fn lookups_and_queries_equal_local_values_in_every_canonical_world() {
+    for name in ["exp1-tree", "exp1-wall", "exp2", "exp3"] {
+        let ns = namespace(name);
+        let _serve = Serve::start(name, &ns, &[]);
+        let w = load_world(name).unwrap();
+        let e = Engine::new(&w, Limits::default()).unwrap();
+        let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+        let d = *c.describe();
+        assert_eq!(d.states as usize, e.space.len());
+        assert_eq!(msg::get_name(&d.world), name);
+        let set = w.empowerment.objects.clone().unwrap();
+        let t = tool(&w);
+        let (hu, he) = (
+            w.empowerment.horizon_unequipped,
+            w.empowerment.horizon_equipped,
+        );
+        let vu = e.values(t, &set, hu, Method::Dp).unwrap();
+        let ve = e.values(t, &set, he, Method::Dp).unwrap();
+        let states = random_states(&e, 3000, 7);
+        let got = c.values(Ask::Lookup, &states, 256).unwrap();
+        for (k, s) in states.iter().enumerate() {
+            let id = e.space.id(s).unwrap() as usize;
+            let want = if t.held(s) { ve[id] } else { vu[id] };
+            assert_eq!(got.status[k], item::OK);
+            assert!(
+                (got.values[k] as f64 - want).abs() < 1e-6,
+                "{name} {}: {} vs {want}",
+                w.describe(s),
+                got.values[k]
+            );
+        }
+        // An ad-hoc query: all actions, the agent as the object, h = 3.
+        let local = e
+            .values(ToolSel::All, &ObjectSet::Agent, 3, Method::Dp)
+            .unwrap();
+        let got = c
+            .values(
+                Ask::Query {
+                    tool: TOOL_ALL,
+                    objects: AGENT_BIT,
+                    horizon: 3,
+                },
+                &states[..500],
+                100,
+            )
+            .unwrap();
+        for (k, s) in states[..500].iter().enumerate() {
+            let want = local[e.space.id(s).unwrap() as usize];
+            assert!((got.values[k] as f64 - want).abs() < 1e-6);
+        }
+    }
+}
+
+#[test]
+fn a_client_started_first_waits_for_the_service() {
+    let ns = namespace("early");
+    let w = load_world("exp2").unwrap();
+    let ns2 = ns.clone();
+    let early = std::thread::spawn(move || {
+        let w = load_world("exp2").unwrap();
+        let mut c = Client::connect(&ns2, &w, Duration::from_secs(30))?;
+        c.values(Ask::Lookup, &[w.initial], 1)
+    });
+    std::thread::sleep(Duration::from_millis(800));
+    let _serve = Serve::start("exp2", &ns, &[]);
+    let b = early
+        .join()
+        .unwrap()
+        .expect("the early client connects once the service is up");
+    // exp2's start: the wand is not held, h = 5; the agent at (1,6) is 3+ steps from
+    // the wand's neighbours... the value is whatever the engine says locally.
+    let e = Engine::new(&w, Limits::default()).unwrap();
+    let local = e
+        .values(
+            ToolSel::Tool(0),
+            w.empowerment.objects.as_ref().unwrap(),
+            5,
+            Method::Dp,
+        )
+        .unwrap();
+    assert_eq!(b.values[0] as f64, local[0] as f32 as f64);
+    // And one that waits in vain gets a typed error, not a hang.
+    let err = Client::connect(&namespace("nobody"), &w, Duration::from_millis(300)).unwrap_err();
+    assert!(matches!(err, ClientError::NoService { .. }), "{err:?}");
+}
+
+#[test]
+fn a_wrong_world_client_is_refused() {
+    let ns = namespace("wrong");
+    let _serve = Serve::start("exp1-tree", &ns, &[]);
+    let other = load_world("exp2").unwrap();
+    match Client::connect(&ns, &other, Duration::from_secs(10)) {
+        Err(ClientError::WrongWorld { served, wanted, .. }) => {
+            assert_eq!((served.as_str(), wanted.as_str()), ("exp1-tree", "exp2"));
+        }
+        other => panic!("expected WrongWorld, got {other:?}"),
+    }
+    // Through the CLI: one sentence, exit code 2.
+    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .args([
+            "empowerment",
+            "query",
+            "exp2",
+            "--state",
+            "agent=1,6",
+            "--service",
+            "--namespace",
+            &ns,
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("serves world 'exp1-tree'"));
+}
+
+#[test]
+fn bad_requests_get_error_statuses_and_the_service_goes_on() {
+    let ns = namespace("bad");
+    let _serve = Serve::start("exp3", &ns, &[]);
+    let w = load_world("exp3").unwrap();
+    let e = Engine::new(&w, Limits::default()).unwrap();
+    let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    let start = [w.initial.to_bytes()];
+    let refused = |c: &mut Client, k: u32, tool: i32, objects: u32, horizon: u32| {
+        c.send_raw(k, &start, tool, objects, horizon).unwrap();
+        match c.recv() {
+            Err(ClientError::Refused(s)) => s,
+            other => panic!("expected a refusal, got {other:?}"),
+        }
+    };
+    // exp3 has 2 tools and 2 objects.
+    assert_eq!(refused(&mut c, msg::kind::QUERY, 7, 1, 3), status::BAD_TOOL);
+    assert_eq!(
+        refused(&mut c, msg::kind::QUERY, -5, 1, 3),
+        status::BAD_TOOL
+    );
+    assert_eq!(
+        refused(&mut c, msg::kind::QUERY, 0, 1 << 5, 3),
+        status::BAD_OBJECTS
+    );
+    assert_eq!(
+        refused(&mut c, msg::kind::QUERY, 0, 0, 3),
+        status::BAD_OBJECTS
+    );
+    assert_eq!(
+        refused(&mut c, msg::kind::QUERY, 0, 1, 1000),
+        status::BAD_HORIZON
+    );
+    assert_eq!(refused(&mut c, 99, 0, 1, 3), status::BAD_KIND);
+    // Garbage state bytes: a status per item, never a crash.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    for round in 0..20 {
+        let n = rng.random_range(1..=msg::MAX_BATCH);
+        let raw: Vec<[u8; msg::STATE_BYTES]> = (0..n)
+            .map(|_| {
+                let mut b = [0u8; msg::STATE_BYTES];
+                rng.fill(&mut b[..]);
+                b
+            })
+            .collect();
+        c.send_raw(msg::kind::LOOKUP, &raw, 0, 0, 0).unwrap();
+        let b = c.recv().unwrap();
+        assert_eq!(b.status.len(), n, "round {round}");
+        assert!(
+            b.status.iter().all(|&s| s == item::NOT_IN_SPACE),
+            "random bytes are (almost surely) not states"
+        );
+    }
+    // The next good request is answered: the key next to the closed door (h = 10
+    // unequipped... the service's table is axe -> door+boulder).
+    let s = w.parse_state("agent=5,3 holding=axe").unwrap();
+    let got = c.values(Ask::Lookup, &[s], 1).unwrap();
+    let set = w.empowerment.objects.clone().unwrap();
+    let want =
+        e.values(ToolSel::Tool(1), &set, 5, Method::Dp).unwrap()[e.space.id(&s).unwrap() as usize];
+    assert_eq!(got.status[0], item::OK);
+    assert!((got.values[0] as f64 - want).abs() < 1e-6);
+}
+
+#[test]
+fn sigkill_gives_clients_a_typed_error_and_a_restart_serves_again() {
+    let ns = namespace("kill");
+    let w = load_world("exp1-tree").unwrap();
+    let mut serve = Serve::start("exp1-tree", &ns, &[]);
+    let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    c.timeout = Duration::from_secs(10);
+    assert_eq!(
+        c.values(Ask::Lookup, &[w.initial], 1).unwrap().status[0],
+        item::OK
+    );
+    serve.signal("-KILL");
+    serve.wait(Duration::from_secs(5)).expect("killed");
+    let t0 = Instant::now();
+    let err = c.values(Ask::Lookup, &[w.initial], 1).unwrap_err();
+    assert!(
+        matches!(err, ClientError::ServiceGone | ClientError::Timeout(_)),
+        "{err:?}"
+    );
+    assert!(
+        t0.elapsed() < Duration::from_secs(11),
+        "a typed error, not a hang"
+    );
+    // A new service on the same namespace starts (the dead one's resources are
+    // cleaned) and serves again, to a new client and to the old one.
+    let _serve2 = Serve::start("exp1-tree", &ns, &[]);
+    let mut c2 = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    assert_eq!(
+        c2.values(Ask::Lookup, &[w.initial], 1).unwrap().status[0],
+        item::OK
+    );
+}
+
+#[test]
+fn a_second_service_for_a_namespace_refuses_politely() {
+    let ns = namespace("twice");
+    let serve = Serve::start("exp2", &ns, &[]);
+    assert!(
+        serve.ready.contains("fulcrum/") && serve.ready.contains("/empowerment"),
+        "{}",
+        serve.ready
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .args(["serve", "exp2", "--namespace", &ns])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("already running"), "{err}");
+}
+
+#[test]
+fn sigint_and_sigterm_stop_the_service_cleanly() {
+    for sig in ["-INT", "-TERM"] {
+        let ns = namespace("stop");
+        let w = load_world("room").unwrap();
+        let mut serve = Serve::start("room", &ns, &[]);
+        let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+        assert_eq!(
+            c.values(Ask::Lookup, &[w.initial], 1).unwrap().status[0],
+            item::OK
+        );
+        drop(c);
+        serve.signal(sig);
+        let st = serve
+            .wait(Duration::from_secs(5))
+            .expect("stops within 5 s");
+        assert!(st.success(), "{sig}: {st:?}");
+        // Nothing is left that blocks the next start on the same namespace.
+        let _again = Serve::start("room", &ns, &[]);
+    }
+}
+
+#[test]
+fn query_service_from_the_cli_equals_the_local_query() {
+    let ns = namespace("cli");
+    let _serve = Serve::start("exp3", &ns, &[]);
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "empowerment",
+            "query",
+            "exp3",
+            "--state",
+            "agent=5,3 holding=key door=open",
+            "--tool",
+            "key",
+            "--objects",
+            "door",
+            "--horizon",
+            "3",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+            .args(&args)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        v["value"].as_f64().unwrap()
+    };
+    let local = run(&[]);
+    let remote = run(&["--service", "--namespace", &ns]);
+    assert_eq!(local, 1.0);
+    assert_eq!(remote, local);
+}
