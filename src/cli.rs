@@ -26,6 +26,28 @@ pub enum Command {
     Serve(ServeArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
+    /// (bench helper) a client process that looks states up for a while.
+    #[command(hide = true, name = "__bench-client")]
+    BenchClient {
+        /// Service namespace.
+        #[arg(long)]
+        namespace: String,
+        /// World the service serves.
+        #[arg(long)]
+        world: String,
+        /// How long to run.
+        #[arg(long)]
+        seconds: f64,
+        /// States per request.
+        #[arg(long)]
+        batch: usize,
+    },
+    /// (bench helper) echo Unix datagrams on a socket path until told to stop.
+    #[command(hide = true, name = "__pingpong")]
+    PingPong {
+        /// Socket path to bind.
+        path: std::path::PathBuf,
+    },
 }
 
 /// `fulcrum serve`

@@ -223,7 +223,7 @@ impl<'w> Engine<'w> {
                 .collect(),
             Method::Enumerate => Vec::new(),
         };
-        for &(j, c) in &pairs {
+        let entry = |&(j, c): &(usize, usize)| -> Result<f64, EngineError> {
             let tool = ToolSel::Tool(j);
             let actions = tool.actions(self.world);
             let counts = match method {
@@ -258,11 +258,22 @@ impl<'w> Engine<'w> {
                     (counts[held as usize][k] as f64).log2()
                 })
                 .sum();
-            values[j][c] = if normal.is_empty() {
+            Ok(if normal.is_empty() {
                 0.0
             } else {
                 sum / normal.len() as f64
-            };
+            })
+        };
+        // Small spaces: one entry per thread beats splitting each propagation step (whose
+        // fork-join costs more than the step). Large ones: one table at a time, each step
+        // split across the threads, so memory holds a single table.
+        let results: Vec<f64> = if self.space.len() <= SMALL_SPACE && method == Method::Dp {
+            pairs.par_iter().map(entry).collect::<Result<_, _>>()?
+        } else {
+            pairs.iter().map(entry).collect::<Result<_, _>>()?
+        };
+        for (&(j, c), v) in pairs.iter().zip(results) {
+            values[j][c] = v;
         }
         let selection = (0..columns.len())
             .map(|c| select(values.iter().map(|row| row[c])))
@@ -388,6 +399,9 @@ impl<'w> Engine<'w> {
         }
     }
 }
+
+/// Spaces up to this many states compute matrix entries in parallel, one per thread.
+const SMALL_SPACE: usize = 100_000;
 
 /// Refuse enumeration beyond about 2 * 10^9 steps (minutes of work).
 fn check_enumerable(actions: usize, horizons: &[u32], states: usize) -> Result<(), EngineError> {

@@ -168,6 +168,8 @@ pub struct ServeStats {
     pub states: u64,
     /// Requests refused with an error status.
     pub refused: u64,
+    /// Time spent answering (microseconds), for the mean latency in the logs.
+    pub busy_us: u64,
 }
 
 /// Object mask of a set (bit per object; [`AGENT_BIT`] for the agent).
@@ -436,6 +438,7 @@ pub fn serve(
                 requests = stats.requests,
                 states = stats.states,
                 refused = stats.refused,
+                mean_answer_us = stats.busy_us as f64 / stats.requests.max(1) as f64,
                 "service"
             );
             return CallbackProgression::Continue;
@@ -504,6 +507,7 @@ fn handle(
     tables.answer(payload, out);
     stats.requests += 1;
     stats.states += out.count as u64;
+    stats.busy_us += t0.elapsed().as_micros() as u64;
     if out.status != status::OK {
         stats.refused += 1;
     }

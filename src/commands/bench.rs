@@ -17,6 +17,8 @@ use crate::plot::write_atomic;
 
 /// One measured figure.
 struct Figure {
+    /// Zero is a valid reading (e.g. CPU while idle), not a broken benchmark.
+    zero_ok: bool,
     name: String,
     value: f64,
     unit: &'static str,
@@ -122,6 +124,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
 
     empowerment_exp2(reps, a.quick, &mut figs)?;
     empowerment_big(a.quick, &mut figs)?;
+    service_figures(a.quick, &mut figs)?;
 
     println!(
         "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
@@ -144,7 +147,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     }
     for f in &figs {
         ensure!(
-            f.value.is_finite() && f.value > 0.0,
+            f.value.is_finite() && (f.value > 0.0 || (f.zero_ok && f.value == 0.0)),
             "benchmark '{}' gave {} {}: broken",
             f.name,
             f.value,
@@ -188,6 +191,7 @@ fn empowerment_exp2(reps: usize, quick: bool, figs: &mut Vec<Figure>) -> Result<
     let (enum_ms, space) = median_ms(reps, || Ok(StateSpace::enumerate(&w, &limits)?))?;
     let n = space.len();
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 state enumeration".into(),
         value: enum_ms,
         unit: "ms",
@@ -209,6 +213,7 @@ fn empowerment_exp2(reps: usize, quick: bool, figs: &mut Vec<Figure>) -> Result<
     );
     let entries = mat.tools.len() * columns.len();
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 full matrix incl. enumeration".into(),
         value: matrix_ms,
         unit: "ms",
@@ -219,6 +224,7 @@ fn empowerment_exp2(reps: usize, quick: bool, figs: &mut Vec<Figure>) -> Result<
         ),
     });
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 matrix cost per state per entry".into(),
         value: (matrix_ms - enum_ms).max(1e-6) * 1e6 / (n * entries) as f64,
         unit: "ns",
@@ -249,12 +255,14 @@ fn empowerment_exp2(reps: usize, quick: bool, figs: &mut Vec<Figure>) -> Result<
         ids.len()
     );
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 E^6 all states, set propagation".into(),
         value: dp_ms,
         unit: "ms",
         note: format!("(wand -> boulder+door, {n} states)"),
     });
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 E^6 per state, enumeration".into(),
         value: enum_per_state_ms,
         unit: "ms",
@@ -264,6 +272,7 @@ fn empowerment_exp2(reps: usize, quick: bool, figs: &mut Vec<Figure>) -> Result<
         ),
     });
     figs.push(Figure {
+        zero_ok: false,
         name: "exp2 speed-up of set propagation at h = 6".into(),
         value: enum_per_state_ms * n as f64 / dp_ms,
         unit: "x",
@@ -284,7 +293,7 @@ fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let enum_ms = t0.elapsed().as_secs_f64() * 1e3;
     let n = e.space.len();
     let label = format!("gen {}x{} t{} o{}", p.width, p.height, p.tools, p.objects);
-    figs.push(Figure { name: format!("{label} state enumeration"), value: enum_ms, unit: "ms", note: format!("({n} states, `fulcrum world generate --width {} --height {} --tools {} --objects {} --seed {}`)", p.width, p.height, p.tools, p.objects, p.seed) });
+    figs.push(Figure { zero_ok: false, name: format!("{label} state enumeration"), value: enum_ms, unit: "ms", note: format!("({n} states, `fulcrum world generate --width {} --height {} --tools {} --objects {} --seed {}`)", p.width, p.height, p.tools, p.objects, p.seed) });
     let column = ObjectSet::Objects(vec![0]);
     let proj = propagate::Projection::new(&e.space, &column);
     let t0 = Instant::now();
@@ -295,6 +304,7 @@ fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         "matrix column is not finite"
     );
     figs.push(Figure {
+        zero_ok: false,
         name: format!("{label} matrix column at h = 8"),
         value: col_ms,
         unit: "ms",
@@ -306,12 +316,14 @@ fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         ),
     });
     figs.push(Figure {
+        zero_ok: false,
         name: format!("{label} column cost per state per tool per step"),
         value: col_ms * 1e6 / (n * m.tools.len() * 8) as f64,
         unit: "ns",
         note: "(6 actions, one 64-bit word per set)".into(),
     });
     figs.push(Figure {
+        zero_ok: false,
         name: "peak memory (VmHWM) after the big world".into(),
         value: peak_mib(),
         unit: "MiB",
@@ -321,4 +333,314 @@ fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         ),
     });
     Ok(())
+}
+
+/// A child `fulcrum serve`, stopped with SIGINT when dropped.
+struct ServeChild(std::process::Child);
+
+impl ServeChild {
+    fn start(world: &str, ns: &str) -> Result<ServeChild> {
+        use std::io::{BufRead, BufReader};
+        let mut child = std::process::Command::new(std::env::current_exe()?)
+            .args(["serve", world, "--namespace", ns])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .context("cannot start fulcrum serve")?;
+        let out = child.stdout.take().context("no stdout")?;
+        for line in BufReader::new(out).lines() {
+            if line?.contains("ready") {
+                return Ok(ServeChild(child));
+            }
+        }
+        let _ = child.kill();
+        anyhow::bail!("fulcrum serve {world} exited before it was ready")
+    }
+}
+
+impl Drop for ServeChild {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("kill")
+            .args(["-INT", &self.0.id().to_string()])
+            .status();
+        let t0 = Instant::now();
+        while t0.elapsed() < std::time::Duration::from_secs(5) {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    sorted[((sorted.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Sample states of a space, seeded.
+fn sample_states(e: &Engine, n: usize) -> Vec<fulcrum_shared::State> {
+    let step = (e.space.len() / n).max(1);
+    (0..n)
+        .map(|i| *e.space.state(((i * step) % e.space.len()) as u32))
+        .collect()
+}
+
+/// The service: round-trip latency, lookup throughput with 1 and 2 client processes,
+/// and the two floors (in-process lookups, a Unix datagram ping-pong).
+fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use fulcrum_empowerment::service::{Ask, Client, ServeConfig, Tables};
+    let world = "exp2";
+    let w = load_world(world)?;
+    let ns = format!("bench-{}", std::process::id());
+    let serve = ServeChild::start(world, &ns)?;
+    let mut c = Client::connect(&ns, &w, std::time::Duration::from_secs(30))?;
+    let e = Engine::new(&w, Limits::default())?;
+    let batch256 = sample_states(&e, 256);
+    let rounds = if quick { 2000 } else { 20000 };
+    for (label, states) in [("1 state", &batch256[..1]), ("256 states", &batch256[..])] {
+        let mut t = Vec::with_capacity(rounds);
+        for _ in 0..rounds {
+            let t0 = Instant::now();
+            c.submit(Ask::Lookup, states)?;
+            let b = c.recv()?;
+            t.push(t0.elapsed().as_secs_f64() * 1e6);
+            ensure!(b.status.iter().all(|&s| s == 0), "lookup failed");
+        }
+        t.sort_by(|a, b| a.total_cmp(b));
+        figs.push(Figure {
+            zero_ok: false,
+            name: format!("service round trip p50, {label}"),
+            value: percentile(&t, 0.5),
+            unit: "us",
+            note: format!("({rounds} requests, exp2)"),
+        });
+        figs.push(Figure {
+            zero_ok: false,
+            name: format!("service round trip p99, {label}"),
+            value: percentile(&t, 0.99),
+            unit: "us",
+            note: String::new(),
+        });
+    }
+    // Throughput, one client in this process, pipelined batches of 256.
+    let secs = if quick { 1.0 } else { 3.0 };
+    let n1 = lookup_for(&mut c, &batch256, secs)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service lookups/s, 1 client, batches of 256".into(),
+        value: n1 / secs,
+        unit: "states/s",
+        note: "(pipelined, 4 requests in flight; goal >= 5M)".into(),
+    });
+    drop(c);
+    // Two client processes at once.
+    let exe = std::env::current_exe()?;
+    let kids: Vec<std::process::Child> = (0..2)
+        .map(|_| {
+            std::process::Command::new(&exe)
+                .args([
+                    "__bench-client",
+                    "--namespace",
+                    &ns,
+                    "--world",
+                    world,
+                    "--seconds",
+                    &secs.to_string(),
+                    "--batch",
+                    "256",
+                ])
+                .stdout(std::process::Stdio::piped())
+                .spawn()
+        })
+        .collect::<std::io::Result<_>>()?;
+    let mut total = 0.0;
+    for k in kids {
+        let out = k.wait_with_output()?;
+        ensure!(out.status.success(), "a bench client failed");
+        total += String::from_utf8_lossy(&out.stdout)
+            .trim()
+            .parse::<f64>()
+            .context("bench client output")?;
+    }
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service lookups/s, 2 client processes".into(),
+        value: total / secs,
+        unit: "states/s",
+        note: "(each pipelined, batches of 256)".into(),
+    });
+    // Idle: the service blocks on its listener once its short spin is over.
+    let idle = if quick { 0.5 } else { 2.0 };
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    let before = cpu_seconds(serve.0.id());
+    std::thread::sleep(std::time::Duration::from_secs_f64(idle));
+    let used = cpu_seconds(serve.0.id()) - before;
+    figs.push(Figure {
+        zero_ok: true,
+        name: "service CPU while idle".into(),
+        value: used / idle * 100.0,
+        unit: "% of a core",
+        note: format!("({used:.2} s of CPU in {idle} s idle, 10 ms clock ticks)"),
+    });
+    // Floor 1: the same lookups in-process, no IPC.
+    let cfg = ServeConfig {
+        namespace: "unused".into(),
+        tool: ToolSel::Tool(0),
+        objects: w
+            .empowerment
+            .objects
+            .clone()
+            .context("exp2 names objects")?,
+        horizon_unequipped: 5,
+        horizon_equipped: 6,
+        cache_bytes: 1 << 20,
+        spin: std::time::Duration::ZERO,
+    };
+    let mut tables = Tables::new(Engine::new(&w, Limits::default())?, cfg)?;
+    let mut req = Box::new(fulcrum_shared::msg::EmpRequest {
+        world_hash: w.content_hash(),
+        kind: fulcrum_shared::msg::kind::LOOKUP,
+        count: 256,
+        tool: 0,
+        horizon: 0,
+        objects: 0,
+        seq: 0,
+        states: [[0; fulcrum_shared::msg::STATE_BYTES]; fulcrum_shared::msg::MAX_BATCH],
+    });
+    for (i, s) in batch256.iter().enumerate() {
+        req.states[i] = s.to_bytes();
+    }
+    let mut resp = Box::new(unsafe_zero_response());
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    while t0.elapsed().as_secs_f64() < secs / 2.0 {
+        for _ in 0..100 {
+            tables.answer(&req, &mut resp);
+            n += 256;
+        }
+    }
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: in-process lookups/s".into(),
+        value: n as f64 / t0.elapsed().as_secs_f64(),
+        unit: "states/s",
+        note: "(the service's own answer loop, no IPC)".into(),
+    });
+    // Floor 2: a Unix datagram ping-pong between two processes.
+    let p50 = pingpong_p50(rounds)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: Unix datagram ping-pong p50".into(),
+        value: p50,
+        unit: "us",
+        note: "(two processes, 8-byte messages: the cross-CPU wake-up)".into(),
+    });
+    Ok(())
+}
+
+/// An all-zero response (valid: plain data).
+fn unsafe_zero_response() -> fulcrum_shared::msg::EmpResponse {
+    // SAFETY: EmpResponse is plain integers, floats and bytes; all-zero is a valid value.
+    unsafe { std::mem::zeroed() }
+}
+
+/// Look up `states` repeatedly for `secs`, pipelined; returns states answered.
+fn lookup_for(
+    c: &mut fulcrum_empowerment::service::Client,
+    states: &[fulcrum_shared::State],
+    secs: f64,
+) -> Result<f64> {
+    use fulcrum_empowerment::service::Ask;
+    let big: Vec<fulcrum_shared::State> = states
+        .iter()
+        .cycle()
+        .take(states.len() * 64)
+        .copied()
+        .collect();
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    while t0.elapsed().as_secs_f64() < secs {
+        let b = c.values(Ask::Lookup, &big, 256)?;
+        n += b.values.len();
+    }
+    Ok(n as f64 * secs / t0.elapsed().as_secs_f64())
+}
+
+/// `fulcrum __bench-client`: look states up for a while, print how many.
+pub fn client_process(ns: &str, world: &str, secs: f64, batch: usize) -> Result<()> {
+    let w = load_world(world)?;
+    let e = Engine::new(&w, Limits::default())?;
+    let mut c =
+        fulcrum_empowerment::service::Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
+    let states = sample_states(&e, batch.max(1));
+    let n = lookup_for(&mut c, &states, secs)?;
+    println!("{n}");
+    Ok(())
+}
+
+/// `fulcrum __pingpong PATH`: echo datagrams back to their sender until an empty one.
+pub fn pingpong_echo(path: &std::path::Path) -> Result<()> {
+    let sock = std::os::unix::net::UnixDatagram::bind(path)?;
+    let mut buf = [0u8; 64];
+    loop {
+        let (n, from) = sock.recv_from(&mut buf)?;
+        if n == 0 {
+            return Ok(());
+        }
+        if let Some(p) = from.as_pathname() {
+            sock.send_to(&buf[..n], p)?;
+        }
+    }
+}
+
+/// Median round trip of 8-byte datagrams to a child echo process, in microseconds.
+fn pingpong_p50(rounds: usize) -> Result<f64> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-pingpong-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let (theirs, ours) = (dir.join("echo"), dir.join("me"));
+    let _ = std::fs::remove_file(&theirs);
+    let _ = std::fs::remove_file(&ours);
+    let mut child = std::process::Command::new(std::env::current_exe()?)
+        .arg("__pingpong")
+        .arg(&theirs)
+        .spawn()?;
+    let sock = std::os::unix::net::UnixDatagram::bind(&ours)?;
+    let t0 = Instant::now();
+    while !theirs.exists() {
+        ensure!(
+            t0.elapsed().as_secs() < 10,
+            "the ping-pong echo did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let mut buf = [0u8; 64];
+    let mut t = Vec::with_capacity(rounds);
+    for i in 0..rounds + 100 {
+        let t0 = Instant::now();
+        sock.send_to(&(i as u64).to_le_bytes(), &theirs)?;
+        sock.recv(&mut buf)?;
+        if i >= 100 {
+            t.push(t0.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    sock.send_to(&[], &theirs)?;
+    let _ = child.wait();
+    let _ = std::fs::remove_dir_all(&dir);
+    t.sort_by(|a, b| a.total_cmp(b));
+    Ok(percentile(&t, 0.5))
+}
+
+/// User + system CPU seconds of a process so far (/proc/PID/stat).
+fn cpu_seconds(pid: u32) -> f64 {
+    let Ok(stat) = std::fs::read_to_string(format!("/proc/{pid}/stat")) else {
+        return 0.0;
+    };
+    // Fields after the command name (which is in parentheses and may hold spaces).
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
+    // utime and stime are fields 14 and 15 of stat, i.e. 11 and 12 after ')'; 100 Hz.
+    (ticks(11) + ticks(12)) / 100.0
 }

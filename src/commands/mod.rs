@@ -54,6 +54,13 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Empowerment(c) => empowerment::run(c),
         Command::Serve(a) => serve::run(&a),
         Command::Bench(a) => bench::run(a),
+        Command::BenchClient {
+            namespace,
+            world,
+            seconds,
+            batch,
+        } => bench::client_process(&namespace, &world, seconds, batch),
+        Command::PingPong { path } => bench::pingpong_echo(&path),
     }
 }
 

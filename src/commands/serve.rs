@@ -4,7 +4,7 @@ use std::io::Write;
 use std::time::Duration;
 
 use anyhow::Result;
-use fulcrum_empowerment::service::{serve, ServeConfig, ServeExit, Tables};
+use fulcrum_empowerment::service::{serve, ServeConfig, Tables};
 use fulcrum_empowerment::{set_name, Method, ToolSel};
 use fulcrum_shared::msg;
 
@@ -78,16 +78,10 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         );
         let _ = std::io::stdout().flush();
     })?;
+    let _ = exit;
     println!(
-        "fulcrum serve: stopped by {}: {} requests, {} states, {} refused",
-        if exit == ServeExit::Interrupt {
-            "SIGINT"
-        } else {
-            "SIGTERM"
-        },
-        stats.requests,
-        stats.states,
-        stats.refused
+        "fulcrum serve: stopped: {} requests, {} states, {} refused",
+        stats.requests, stats.states, stats.refused
     );
     Ok(())
 }

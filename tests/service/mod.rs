@@ -403,3 +403,36 @@ fn query_service_from_the_cli_equals_the_local_query() {
     assert_eq!(local, 1.0);
     assert_eq!(remote, local);
 }
+
+#[test]
+fn many_clients_at_once() {
+    let ns = namespace("many");
+    let _serve = Serve::start("exp2", &ns, &[]);
+    let w = load_world("exp2").unwrap();
+    let e = Engine::new(&w, Limits::default()).unwrap();
+    let set = w.empowerment.objects.clone().unwrap();
+    let vu = e.values(ToolSel::Tool(0), &set, 5, Method::Dp).unwrap();
+    let ve = e.values(ToolSel::Tool(0), &set, 6, Method::Dp).unwrap();
+    let states = random_states(&e, 2000, 3);
+    let want: Vec<f32> = states
+        .iter()
+        .map(|s| {
+            let id = e.space.id(s).unwrap() as usize;
+            (if s.holds(0) { ve[id] } else { vu[id] }) as f32
+        })
+        .collect();
+    // 12 clients (as many actors as a big machine runs, plus CLI users), each its own
+    // node, all at once.
+    std::thread::scope(|sc| {
+        for k in 0..12 {
+            let (ns, w, states, want) = (&ns, &w, &states, &want);
+            sc.spawn(move || {
+                let mut c = Client::connect(ns, w, Duration::from_secs(20)).unwrap();
+                for round in 0..5 {
+                    let b = c.values(Ask::Lookup, states, 64 + 64 * k).unwrap();
+                    assert_eq!(&b.values, want, "client {k} round {round}");
+                }
+            });
+        }
+    });
+}
