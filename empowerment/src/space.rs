@@ -5,8 +5,13 @@
 //! are computed in parallel (rayon), then deduplicated in one hash map in id order, so
 //! ids are deterministic (BFS order) whatever the thread count.
 //!
+//! The index packs each state into a `u64` when the world's fields fit in 64 bits (agent
+//! cell, mode, inventory bits, 2 bits per tree/wall/door, a cell index per boulder):
+//! keys a third the size of the 38-byte state make the look-ups, which are bound by
+//! memory latency, faster. Other worlds key by the whole state.
+//!
 //! Memory: `states` (38 B each), the successor table (`4 |A|` B each) and the index
-//! (about 60 B each): roughly `100 + 4 |A|` bytes per state.
+//! (16 to 60 B each): at most `100 + 4 |A|` bytes per state.
 
 use std::collections::hash_map::Entry;
 
@@ -17,11 +22,170 @@ use rayon::prelude::*;
 use crate::error::EngineError;
 use crate::limits::Limits;
 
+/// Packs the states of one world into `u64` keys, checking every field's range (so a
+/// garbage state never aliases a real one).
+#[derive(Debug, Clone)]
+struct Packer {
+    width: u8,
+    height: u8,
+    max_mode: u8,
+    tools: u32,
+    /// Per object: (bits, largest valid value, is a boulder).
+    objects: Vec<(u32, u16, bool)>,
+    cells: u16,
+}
+
+/// Bits to hold the values 0..=n.
+fn bits(n: u64) -> u32 {
+    64 - n.leading_zeros()
+}
+
+impl Packer {
+    fn new(world: &World) -> Option<Packer> {
+        let cells = (world.width * world.height) as u16;
+        let n = world.tools.len() as u32;
+        let objects: Vec<(u32, u16, bool)> = world
+            .objects
+            .iter()
+            .map(|o| {
+                if o.kind == fulcrum_shared::ObjectKind::Boulder {
+                    // Cell index, or `cells` for destroyed.
+                    (bits(cells as u64), cells, true)
+                } else {
+                    (2, 2, false)
+                }
+            })
+            .collect();
+        let total = bits(world.width as u64 * world.height as u64 - 1)
+            + bits(1 + n as u64)
+            + n
+            + objects.iter().map(|o| o.0).sum::<u32>();
+        (total <= 64).then_some(Packer {
+            width: world.width as u8,
+            height: world.height as u8,
+            max_mode: 1 + n as u8,
+            tools: n,
+            objects,
+            cells,
+        })
+    }
+
+    #[inline]
+    fn pack(&self, s: &State) -> Option<u64> {
+        if s.x >= self.width || s.y >= self.height || s.mode > self.max_mode || s.reserved != 0 {
+            return None;
+        }
+        if (s.inventory as u32) >> self.tools != 0 {
+            return None;
+        }
+        let mut k = (s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
+            + s.mode as u64;
+        k = k << self.tools | s.inventory as u64;
+        let mut bad = false;
+        for (&(b, max, boulder), &raw) in self.objects.iter().zip(&s.objects) {
+            // Boulders: a cell index below `cells` (= max), or destroyed, keyed as
+            // `cells`; the others: a condition 0..=2 (= max).
+            let v = if boulder && raw == fulcrum_shared::BOULDER_DESTROYED {
+                max
+            } else {
+                bad |= if boulder { raw >= max } else { raw > max };
+                raw
+            };
+            k = k << b | v as u64;
+        }
+        if bad {
+            return None;
+        }
+        // Slots past the world's objects must be zero: test them four at a time.
+        let w = s.words();
+        let n = self.objects.len();
+        let unused = |q: usize| -> u64 {
+            let first = n.saturating_sub(4 * q).min(4);
+            if first >= 4 {
+                0
+            } else {
+                u64::MAX << (16 * first)
+            }
+        };
+        if (0..4).any(|q| w[1 + q] & unused(q) != 0) {
+            return None;
+        }
+        Some(k)
+    }
+
+    /// [`Packer::pack`] without the range checks, for states the dynamics made.
+    #[inline]
+    fn pack_trusted(&self, s: &State) -> u64 {
+        let mut k = (s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
+            + s.mode as u64;
+        k = k << self.tools | s.inventory as u64;
+        for (&(b, _, boulder), &v) in self.objects.iter().zip(&s.objects) {
+            let v = if boulder && v == fulcrum_shared::BOULDER_DESTROYED {
+                self.cells
+            } else {
+                v
+            };
+            k = k << b | v as u64;
+        }
+        k
+    }
+}
+
+/// State -> id.
+#[derive(Debug)]
+enum Index {
+    Packed(Packer, FastMap<u64, u32>),
+    Full(FastMap<State, u32>),
+}
+
+impl Index {
+    fn new(world: &World) -> Index {
+        match Packer::new(world) {
+            Some(p) => Index::Packed(p, FastMap::default()),
+            None => Index::Full(FastMap::default()),
+        }
+    }
+
+    #[inline]
+    fn get(&self, s: &State) -> Option<u32> {
+        match self {
+            Index::Packed(p, m) => m.get(&p.pack(s)?).copied(),
+            Index::Full(m) => m.get(s).copied(),
+        }
+    }
+
+    /// The id of `s`, giving it `next` if it is new (then true).
+    #[inline]
+    fn get_or_insert(&mut self, s: &State, next: u32) -> (u32, bool) {
+        match self {
+            Index::Packed(p, m) => {
+                debug_assert_eq!(p.pack(s), Some(p.pack_trusted(s)));
+                let k = p.pack_trusted(s);
+                match m.entry(k) {
+                    Entry::Occupied(e) => (*e.get(), false),
+                    Entry::Vacant(e) => (*e.insert(next), true),
+                }
+            }
+            Index::Full(m) => match m.entry(*s) {
+                Entry::Occupied(e) => (*e.get(), false),
+                Entry::Vacant(e) => (*e.insert(next), true),
+            },
+        }
+    }
+
+    fn reserve(&mut self, n: usize) {
+        match self {
+            Index::Packed(_, m) => m.reserve(n),
+            Index::Full(m) => m.reserve(n),
+        }
+    }
+}
+
 /// An enumerated state space with its successor table.
 #[derive(Debug)]
 pub struct StateSpace {
     states: Vec<State>,
-    index: FastMap<State, u32>,
+    index: Index,
     succ: Vec<u32>,
     actions: usize,
 }
@@ -38,8 +202,9 @@ impl StateSpace {
         let na = world.num_actions();
         let max_states = (limits.max_bytes / bytes_per_state(na)).min(u32::MAX as usize - 1);
         let mut states = vec![world.initial];
-        let mut index = FastMap::default();
-        index.insert(world.initial, 0u32);
+        let mut index = Index::new(world);
+        index.reserve(1 << 12);
+        index.get_or_insert(&world.initial, 0);
         let mut succ: Vec<u32> = Vec::new();
         let mut start = 0;
         while start < states.len() {
@@ -59,15 +224,10 @@ impl StateSpace {
             };
             succ.reserve(next.len());
             for ns in next {
-                let id = match index.entry(ns) {
-                    Entry::Occupied(e) => *e.get(),
-                    Entry::Vacant(e) => {
-                        let id = states.len() as u32;
-                        e.insert(id);
-                        states.push(ns);
-                        id
-                    }
-                };
+                let (id, new) = index.get_or_insert(&ns, states.len() as u32);
+                if new {
+                    states.push(ns);
+                }
                 succ.push(id);
             }
             if states.len() > max_states {
@@ -115,7 +275,7 @@ impl StateSpace {
 
     /// The id of a state, if it is in the space.
     pub fn id(&self, s: &State) -> Option<u32> {
-        self.index.get(s).copied()
+        self.index.get(s)
     }
 
     /// The id of T(s_i, a).
@@ -141,5 +301,44 @@ impl StateSpace {
     /// Approximate bytes held.
     pub fn bytes(&self) -> usize {
         self.len() * bytes_per_state(self.actions)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fulcrum_shared::load_world;
+
+    #[test]
+    fn every_state_finds_its_own_id_and_garbage_finds_none() {
+        for name in ["exp2", "exp3"] {
+            let w = load_world(name).unwrap();
+            let sp = StateSpace::enumerate(&w, &Limits::default()).unwrap();
+            assert!(
+                matches!(sp.index, Index::Packed(..)),
+                "{name} fits in 64 bits"
+            );
+            for (i, s) in sp.states().iter().enumerate() {
+                assert_eq!(sp.id(s), Some(i as u32));
+            }
+            let b = w.boulder_indices().next().unwrap();
+            let cells = (w.width * w.height) as u16;
+            let mut bad = w.initial;
+            // A boulder slot holding the value that keys "destroyed" must not alias it.
+            bad.objects[b] = cells;
+            assert_eq!(sp.id(&bad), None);
+            let mut bad = w.initial;
+            bad.objects[15] = 1; // a slot past the world's objects
+            assert_eq!(sp.id(&bad), None);
+            let mut bad = w.initial;
+            bad.x = w.width as u8;
+            assert_eq!(sp.id(&bad), None);
+            let mut bad = w.initial;
+            bad.inventory = 1 << w.tools.len();
+            assert_eq!(sp.id(&bad), None);
+            let mut bad = w.initial;
+            bad.mode = 2 + w.tools.len() as u8;
+            assert_eq!(sp.id(&bad), None);
+        }
     }
 }

@@ -35,8 +35,12 @@ impl Hasher for FastHasher {
     }
     #[inline]
     fn finish(&self) -> u64 {
-        // Fold the high bits down: hashbrown takes its bucket from the low bits.
-        self.0 ^ (self.0 >> 29)
+        // hashbrown takes the bucket from the low bits and a tag from the top 7: mix so
+        // that both depend on every input bit (the low bits of a product depend only on
+        // the low bits of the input, and packed state keys differ mostly in high bits).
+        let h = self.0 ^ (self.0 >> 33);
+        let h = h.wrapping_mul(0xff51_afd7_ed55_8ccd);
+        h ^ (h >> 33)
     }
 }
 
