@@ -464,3 +464,59 @@ fn a_state_space_over_the_memory_limit_is_refused_before_it_starts() {
     assert!(err.contains("over the memory limit of 64.0 MiB"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn landscape_and_trace_pictures_are_written() {
+    let d = temp_dir("png");
+    let l = d.join("landscape.png");
+    let t = d.join("trace.png");
+    let out = fulcrum(&[
+        "empowerment",
+        "landscape",
+        "exp1-tree",
+        "--tool",
+        "axe",
+        "--objects",
+        "tree",
+        "--horizon",
+        "8",
+        "--png",
+        l.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let out = fulcrum(&[
+        "empowerment",
+        "trace",
+        "exp3",
+        "--tool",
+        "key",
+        "--objects",
+        "door",
+        "--horizon",
+        "3",
+        "--actions",
+        "N,N,E,E,E,E,S,apply,key,E,E",
+        "--png",
+        t.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for p in [&l, &t] {
+        let bytes = std::fs::read(p).unwrap();
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n", "{}", p.display());
+        // IHDR width and height: a real picture, not an empty one.
+        let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+        let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+        assert!(w >= 200 && h >= 150, "{}: {w}x{h}", p.display());
+    }
+    // Nothing else left in the directory (no temp files).
+    assert_eq!(std::fs::read_dir(&d).unwrap().count(), 2);
+    let _ = std::fs::remove_dir_all(&d);
+}
