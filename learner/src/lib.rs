@@ -1,1 +1,7 @@
-//! fulcrum-learner: the candle PPO learner. Not built yet: see the training issue.
+//! fulcrum-learner: the PPO learner (candle, in the training issue). So far: the
+//! advantage estimation it will use.
+
+/// Generalised advantage estimation with termination and truncation.
+pub mod gae;
+
+pub use gae::{gae, Rollout};
