@@ -1,7 +1,17 @@
-//! fulcrum-learner: the PPO learner (candle, in the training issue). So far: the
-//! advantage estimation it will use.
+//! fulcrum-learner: the candle PPO learner.
+//!
+//! PPO as CleanRL's `ppo.py` ([`ppo`]), on an actor-critic network whose first layer
+//! sums one embedding row per (cell, glyph) ([`net`]), with GAE that tells truncation
+//! from termination ([`gae`]). [`local`] trains in one process (the reference loop that
+//! the multi-process training of `fulcrum train` distributes).
 
 /// Generalised advantage estimation with termination and truncation.
 pub mod gae;
+/// Single-process training loop.
+pub mod local;
+/// The actor-critic network.
+pub mod net;
+/// The PPO loss, Adam and gradient clipping.
+pub mod ppo;
 
 pub use gae::{gae, Rollout};

@@ -1,0 +1,325 @@
+//! Single-process PPO training: M worlds stepped in lock-step, T steps per update,
+//! reward `R + beta * E(s_{t+1})` with E from a caller-supplied function (an engine's
+//! table in-process; the empowerment service in `fulcrum train`).
+//!
+//! This is the reference loop: the multi-process training distributes exactly these
+//! steps (actors collect, the learner runs [`update`]).
+
+use candle_core::{Device, Result, Tensor};
+use fulcrum_shared::{Episode, World};
+use rand::seq::SliceRandom;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::gae::{gae, Rollout};
+use crate::net::{sample, Net, NetShape};
+use crate::ppo::{clipped_grads, loss, Adam, Minibatch, PpoConfig, Stats};
+
+/// What to train.
+#[derive(Debug, Clone, Copy)]
+pub struct LocalConfig {
+    /// Worlds stepped together.
+    pub envs: usize,
+    /// Steps per world per update.
+    pub steps: usize,
+    /// Env steps in all (rounded up to whole updates).
+    pub total_steps: u64,
+    /// Hidden units.
+    pub hidden: usize,
+    /// Seed of weights, sampling and minibatch order.
+    pub seed: u64,
+    /// Weight of the intrinsic reward.
+    pub beta: f32,
+    /// PPO hyperparameters.
+    pub ppo: PpoConfig,
+}
+
+impl Default for LocalConfig {
+    fn default() -> Self {
+        LocalConfig {
+            envs: 8,
+            steps: 128,
+            total_steps: 200_000,
+            hidden: 64,
+            seed: 1,
+            beta: 0.0,
+            ppo: PpoConfig::default(),
+        }
+    }
+}
+
+/// One update's record (a row of metrics.csv).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct UpdateLog {
+    /// Env steps so far.
+    pub env_steps: u64,
+    /// Episodes finished in this update.
+    pub episodes: u32,
+    /// Of those, how many reached the task's terminal state.
+    pub successes: u32,
+    /// Mean extrinsic return of those episodes.
+    pub extrinsic_return: f32,
+    /// Mean intrinsic reward per step in this update.
+    pub intrinsic_mean: f32,
+    /// Mean episode length.
+    pub episode_length: f32,
+    /// Last minibatch's diagnostics, averaged over the update.
+    pub stats: Stats,
+}
+
+impl UpdateLog {
+    /// Success rate of the episodes finished in this update (0 when none finished).
+    pub fn success_rate(&self) -> f32 {
+        if self.episodes == 0 {
+            0.0
+        } else {
+            self.successes as f32 / self.episodes as f32
+        }
+    }
+}
+
+/// The network's shape for a world.
+pub fn shape_for(world: &World, hidden: usize) -> NetShape {
+    let spec = world.obs_spec();
+    NetShape {
+        cells: spec.cells(),
+        glyphs: spec.glyphs,
+        flags: spec.flags,
+        hidden,
+        actions: world.num_actions(),
+    }
+}
+
+/// Train; `intrinsic(s)` is E at the state reached. Calls `on_update` after each update.
+pub fn train(
+    world: &World,
+    cfg: &LocalConfig,
+    intrinsic: &dyn Fn(&fulcrum_shared::State) -> f32,
+    mut on_update: impl FnMut(&UpdateLog),
+) -> Result<(Net, Vec<UpdateLog>)> {
+    let dev = Device::Cpu;
+    let shape = shape_for(world, cfg.hidden);
+    let net = Net::new(shape, cfg.seed, &dev)?;
+    let mut adam = Adam::new(&net)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);
+    let (m, t_len) = (cfg.envs, cfg.steps);
+    let (c, f) = (shape.cells, shape.flags);
+    let batch = m * t_len;
+    let updates = cfg.total_steps.div_ceil(batch as u64).max(1);
+    let mut eps: Vec<Episode> = (0..m).map(|_| world.reset()).collect();
+    let mut ep_ret = vec![0.0f32; m];
+    let mut logs = Vec::new();
+    let mut env_steps = 0u64;
+    let mut g = vec![0u8; batch * c];
+    let mut fl = vec![0u8; batch * f];
+    let mut acts = vec![0u32; batch];
+    let mut lps = vec![0.0f32; batch];
+    let mut vals = vec![0.0f32; batch];
+    let mut rews = vec![0.0f32; batch];
+    let mut term = vec![false; batch];
+    let mut trunc = vec![false; batch];
+    let mut tvals = vec![0.0f32; batch];
+    for u in 0..updates {
+        let lr = cfg.ppo.lr * (1.0 - u as f64 / updates as f64);
+        let mut log = UpdateLog::default();
+        let mut ep_len_sum = 0u64;
+        let mut intrinsic_sum = 0.0f64;
+        // Final observations of truncated episodes, valued after the rollout.
+        let mut finals: Vec<(usize, Vec<u8>, Vec<u8>)> = Vec::new();
+        for t in 0..t_len {
+            let base = t * m;
+            for (e, ep) in eps.iter().enumerate() {
+                let i = base + e;
+                world.observe(
+                    &ep.state,
+                    &mut g[i * c..(i + 1) * c],
+                    &mut fl[i * f..(i + 1) * f],
+                );
+            }
+            let obs = net.batch(&g[base * c..(base + m) * c], &fl[base * f..(base + m) * f])?;
+            let (logits, value) = net.forward(&obs)?;
+            let (a, lp) = sample(&logits, &mut rng)?;
+            let v: Vec<f32> = value.to_vec1()?;
+            for e in 0..m {
+                let i = base + e;
+                acts[i] = a[e];
+                lps[i] = lp[e];
+                vals[i] = v[e];
+                let out = world.env_step(&mut eps[e], a[e] as u8);
+                let bonus = cfg.beta * intrinsic(&eps[e].state);
+                intrinsic_sum += bonus as f64;
+                rews[i] = out.reward + bonus;
+                ep_ret[e] += out.reward;
+                term[i] = out.terminated;
+                trunc[i] = out.truncated;
+                if out.terminated || out.truncated {
+                    log.episodes += 1;
+                    log.successes += out.terminated as u32;
+                    log.extrinsic_return += ep_ret[e];
+                    ep_len_sum += eps[e].t as u64;
+                    if out.truncated {
+                        let mut gg = vec![0u8; c];
+                        let mut ff = vec![0u8; f];
+                        world.observe(&eps[e].state, &mut gg, &mut ff);
+                        finals.push((i, gg, ff));
+                    }
+                    ep_ret[e] = 0.0;
+                    eps[e] = world.reset();
+                }
+            }
+        }
+        env_steps += batch as u64;
+        // Values after the rollout and of truncated episodes' final observations.
+        let mut lg = vec![0u8; m * c];
+        let mut lf = vec![0u8; m * f];
+        for (e, ep) in eps.iter().enumerate() {
+            world.observe(
+                &ep.state,
+                &mut lg[e * c..(e + 1) * c],
+                &mut lf[e * f..(e + 1) * f],
+            );
+        }
+        let last: Vec<f32> = net.forward(&net.batch(&lg, &lf)?)?.1.to_vec1()?;
+        tvals.fill(0.0);
+        if !finals.is_empty() {
+            let fg: Vec<u8> = finals.iter().flat_map(|x| x.1.iter().copied()).collect();
+            let ff: Vec<u8> = finals.iter().flat_map(|x| x.2.iter().copied()).collect();
+            let fv: Vec<f32> = net.forward(&net.batch(&fg, &ff)?)?.1.to_vec1()?;
+            for ((i, _, _), v) in finals.iter().zip(fv) {
+                tvals[*i] = v;
+            }
+        }
+        let (adv, ret) = gae(
+            &Rollout {
+                envs: m,
+                rewards: &rews,
+                values: &vals,
+                terminated: &term,
+                truncated: &trunc,
+                truncated_values: &tvals,
+                last_values: &last,
+            },
+            cfg.ppo.gamma,
+            cfg.ppo.gae_lambda,
+        );
+        log.stats = update(
+            &net,
+            &mut adam,
+            &cfg.ppo,
+            lr,
+            &mut rng,
+            &UpdateData {
+                glyphs: &g,
+                flags: &fl,
+                actions: &acts,
+                logprobs: &lps,
+                values: &vals,
+                advantages: &adv,
+                returns: &ret,
+            },
+        )?;
+        log.env_steps = env_steps;
+        if log.episodes > 0 {
+            log.extrinsic_return /= log.episodes as f32;
+            log.episode_length = ep_len_sum as f32 / log.episodes as f32;
+        }
+        log.intrinsic_mean = (intrinsic_sum / batch as f64) as f32;
+        on_update(&log);
+        logs.push(log);
+    }
+    Ok((net, logs))
+}
+
+/// One rollout, flat, sample-major (`[i * cells ..]` for glyphs).
+#[derive(Debug)]
+pub struct UpdateData<'a> {
+    /// Glyph grids.
+    pub glyphs: &'a [u8],
+    /// Flags.
+    pub flags: &'a [u8],
+    /// Actions.
+    pub actions: &'a [u32],
+    /// log pi_old.
+    pub logprobs: &'a [f32],
+    /// V_old.
+    pub values: &'a [f32],
+    /// GAE advantages.
+    pub advantages: &'a [f32],
+    /// Returns.
+    pub returns: &'a [f32],
+}
+
+/// PPO epochs over shuffled minibatches; returns the mean diagnostics.
+pub fn update(
+    net: &Net,
+    adam: &mut Adam,
+    cfg: &PpoConfig,
+    lr: f64,
+    rng: &mut ChaCha8Rng,
+    d: &UpdateData,
+) -> Result<Stats> {
+    let n = d.actions.len();
+    let (c, f) = (net.shape.cells, net.shape.flags);
+    let mb = n / cfg.minibatches.max(1);
+    let mut idx: Vec<usize> = (0..n).collect();
+    let mut sum = Stats::default();
+    let mut count = 0;
+    let dev = net.device().clone();
+    for _ in 0..cfg.epochs {
+        idx.shuffle(rng);
+        for chunk in idx.chunks(mb.max(1)) {
+            let g: Vec<u8> = chunk
+                .iter()
+                .flat_map(|&i| d.glyphs[i * c..(i + 1) * c].iter().copied())
+                .collect();
+            let fl: Vec<u8> = chunk
+                .iter()
+                .flat_map(|&i| d.flags[i * f..(i + 1) * f].iter().copied())
+                .collect();
+            let pick_f = |v: &[f32]| {
+                Tensor::from_vec(
+                    chunk.iter().map(|&i| v[i]).collect::<Vec<f32>>(),
+                    chunk.len(),
+                    &dev,
+                )
+            };
+            let obs = net.batch(&g, &fl)?;
+            let actions = Tensor::from_vec(
+                chunk.iter().map(|&i| d.actions[i]).collect::<Vec<u32>>(),
+                chunk.len(),
+                &dev,
+            )?;
+            let (old_lp, adv, ret, old_v) = (
+                pick_f(d.logprobs)?,
+                pick_f(d.advantages)?,
+                pick_f(d.returns)?,
+                pick_f(d.values)?,
+            );
+            let batch = Minibatch {
+                obs: &obs,
+                actions: &actions,
+                old_logprob: &old_lp,
+                advantages: &adv,
+                returns: &ret,
+                old_values: &old_v,
+            };
+            let (l, s) = loss(net, &batch, cfg)?;
+            let (grads, _) = clipped_grads(net, &l, cfg.max_grad_norm)?;
+            adam.apply(net, &grads, lr)?;
+            sum.policy_loss += s.policy_loss;
+            sum.value_loss += s.value_loss;
+            sum.entropy += s.entropy;
+            sum.approx_kl += s.approx_kl;
+            sum.clip_frac += s.clip_frac;
+            count += 1;
+        }
+    }
+    let k = count.max(1) as f32;
+    Ok(Stats {
+        policy_loss: sum.policy_loss / k,
+        value_loss: sum.value_loss / k,
+        entropy: sum.entropy / k,
+        approx_kl: sum.approx_kl / k,
+        clip_frac: sum.clip_frac / k,
+    })
+}

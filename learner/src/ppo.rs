@@ -1,0 +1,206 @@
+//! PPO (clipped surrogate), as CleanRL's `ppo.py`.
+//!
+//! For a minibatch with advantages A (normalised to mean 0, std 1), old log-probs
+//! `lp_old`, old values `v_old` and returns R:
+//!
+//! ```text
+//! ratio  = exp(lp - lp_old)
+//! L_pi   = mean( max(-A * ratio, -A * clip(ratio, 1 - eps, 1 + eps)) )
+//! L_v    = 0.5 * mean( max((v - R)^2, (v_old + clip(v - v_old, -eps, eps) - R)^2) )
+//! L      = L_pi - c_ent * mean(entropy) + c_v * L_v
+//! ```
+//!
+//! minimised by Adam (our own, so that its moments and step are checkpointed) after
+//! clipping the global gradient norm; the learning rate is annealed linearly to 0 over
+//! the run.
+
+use candle_core::{Result, Tensor};
+
+use crate::net::{logprob_entropy, Net, ObsBatch};
+
+/// PPO hyperparameters (CleanRL's defaults).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PpoConfig {
+    /// Discount.
+    pub gamma: f32,
+    /// GAE lambda.
+    pub gae_lambda: f32,
+    /// Clip range for the ratio and the value.
+    pub clip: f32,
+    /// Entropy coefficient.
+    pub ent_coef: f32,
+    /// Value-loss coefficient.
+    pub vf_coef: f32,
+    /// Epochs per update.
+    pub epochs: usize,
+    /// Minibatches per epoch.
+    pub minibatches: usize,
+    /// Global gradient-norm limit.
+    pub max_grad_norm: f32,
+    /// Adam learning rate at the start (annealed to 0).
+    pub lr: f64,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        PpoConfig {
+            gamma: 0.99,
+            gae_lambda: 0.95,
+            clip: 0.2,
+            ent_coef: 0.01,
+            vf_coef: 0.5,
+            epochs: 4,
+            minibatches: 4,
+            max_grad_norm: 0.5,
+            lr: 2.5e-4,
+        }
+    }
+}
+
+/// Adam with its state in the open (moments and step), eps 1e-5 as CleanRL.
+#[derive(Debug)]
+pub struct Adam {
+    /// First moments, one per parameter.
+    pub m: Vec<Tensor>,
+    /// Second moments.
+    pub v: Vec<Tensor>,
+    /// Steps taken.
+    pub step: u64,
+}
+
+impl Adam {
+    /// Zero state for a network.
+    pub fn new(net: &Net) -> Result<Adam> {
+        let z = |t: &Tensor| t.zeros_like();
+        Ok(Adam {
+            m: net
+                .params
+                .iter()
+                .map(|(_, v)| z(v.as_tensor()))
+                .collect::<Result<_>>()?,
+            v: net
+                .params
+                .iter()
+                .map(|(_, v)| z(v.as_tensor()))
+                .collect::<Result<_>>()?,
+            step: 0,
+        })
+    }
+
+    /// One step with gradients `grads` (same order as the parameters).
+    pub fn apply(&mut self, net: &Net, grads: &[Tensor], lr: f64) -> Result<()> {
+        const B1: f64 = 0.9;
+        const B2: f64 = 0.999;
+        const EPS: f64 = 1e-5;
+        self.step += 1;
+        let t = self.step as i32;
+        let (c1, c2) = (1.0 - B1.powi(t), 1.0 - B2.powi(t));
+        for (i, ((_, var), g)) in net.params.iter().zip(grads).enumerate() {
+            self.m[i] = ((&self.m[i] * B1)? + (g * (1.0 - B1))?)?;
+            self.v[i] = ((&self.v[i] * B2)? + (g.sqr()? * (1.0 - B2))?)?;
+            let mhat = (&self.m[i] / c1)?;
+            let denom = ((&self.v[i] / c2)?.sqrt()? + EPS)?;
+            let upd = ((mhat / denom)? * lr)?;
+            var.set(&(var.as_tensor() - upd)?)?;
+        }
+        Ok(())
+    }
+}
+
+/// One minibatch's data.
+#[derive(Debug)]
+pub struct Minibatch<'a> {
+    /// Observations.
+    pub obs: &'a ObsBatch,
+    /// Actions taken (u32), shape (B,).
+    pub actions: &'a Tensor,
+    /// log pi_old(a|s), (B,).
+    pub old_logprob: &'a Tensor,
+    /// Advantages (raw; normalised here), (B,).
+    pub advantages: &'a Tensor,
+    /// Returns (value targets), (B,).
+    pub returns: &'a Tensor,
+    /// V_old(s), (B,).
+    pub old_values: &'a Tensor,
+}
+
+/// Diagnostics of one minibatch step.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stats {
+    /// L_pi.
+    pub policy_loss: f32,
+    /// L_v (with the 0.5).
+    pub value_loss: f32,
+    /// Mean entropy.
+    pub entropy: f32,
+    /// mean((ratio - 1) - log ratio).
+    pub approx_kl: f32,
+    /// Fraction of samples with |ratio - 1| > clip.
+    pub clip_frac: f32,
+}
+
+/// The loss of a minibatch and its diagnostics.
+pub fn loss(net: &Net, mb: &Minibatch, cfg: &PpoConfig) -> Result<(Tensor, Stats)> {
+    let (logits, value) = net.forward(mb.obs)?;
+    let (lp, ent) = logprob_entropy(&logits, mb.actions)?;
+    let logratio = (&lp - mb.old_logprob)?;
+    let ratio = logratio.exp()?;
+    let adv = mb.advantages;
+    let n = adv.elem_count();
+    let mean = adv.mean_all()?;
+    let centred = adv.broadcast_sub(&mean)?;
+    // Unbiased std, as torch's default.
+    let std = (centred.sqr()?.sum_all()? / ((n.max(2) - 1) as f64))?.sqrt()?;
+    let adv = centred.broadcast_div(&(std + 1e-8)?)?;
+    let pg1 = (adv.neg()? * &ratio)?;
+    let pg2 = (adv.neg()? * ratio.clamp(1.0 - cfg.clip, 1.0 + cfg.clip)?)?;
+    let pg = pg1.maximum(&pg2)?.mean_all()?;
+    let v_unclipped = (&value - mb.returns)?.sqr()?;
+    let v_clipped = (mb.old_values + (&value - mb.old_values)?.clamp(-cfg.clip, cfg.clip)?)?;
+    let v_loss = ((v_clipped - mb.returns)?
+        .sqr()?
+        .maximum(&v_unclipped)?
+        .mean_all()?
+        * 0.5)?;
+    let ent_mean = ent.mean_all()?;
+    let total = ((&pg - (&ent_mean * cfg.ent_coef as f64)?)? + (&v_loss * cfg.vf_coef as f64)?)?;
+    let r: Vec<f32> = ratio.to_vec1()?;
+    let lr: Vec<f32> = logratio.to_vec1()?;
+    let kl = r.iter().zip(&lr).map(|(r, l)| (r - 1.0) - l).sum::<f32>() / n as f32;
+    let cf = r.iter().filter(|r| (*r - 1.0).abs() > cfg.clip).count() as f32 / n as f32;
+    Ok((
+        total,
+        Stats {
+            policy_loss: pg.to_scalar()?,
+            value_loss: v_loss.to_scalar()?,
+            entropy: ent_mean.to_scalar()?,
+            approx_kl: kl,
+            clip_frac: cf,
+        },
+    ))
+}
+
+/// Gradients of `loss` in parameter order, clipped to a global norm of `max_norm`.
+/// Returns them and the norm before clipping.
+pub fn clipped_grads(net: &Net, loss: &Tensor, max_norm: f32) -> Result<(Vec<Tensor>, f32)> {
+    let store = loss.backward()?;
+    let mut grads = Vec::with_capacity(net.params.len());
+    for (_, v) in &net.params {
+        grads.push(match store.get(v.as_tensor()) {
+            Some(g) => g.clone(),
+            None => v.as_tensor().zeros_like()?,
+        });
+    }
+    let mut sq = 0.0f32;
+    for g in &grads {
+        sq += g.sqr()?.sum_all()?.to_scalar::<f32>()?;
+    }
+    let norm = sq.sqrt();
+    if norm > max_norm {
+        let s = (max_norm / (norm + 1e-6)) as f64;
+        for g in &mut grads {
+            *g = (&*g * s)?;
+        }
+    }
+    Ok((grads, norm))
+}
