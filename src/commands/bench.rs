@@ -125,6 +125,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     empowerment_exp2(reps, a.quick, &mut figs)?;
     empowerment_big(a.quick, &mut figs)?;
     service_figures(a.quick, &mut figs)?;
+    training_figures(a.quick, &mut figs)?;
 
     println!(
         "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
@@ -675,4 +676,89 @@ fn cpu_seconds(pid: u32) -> f64 {
     let ticks = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
     // utime and stime are fields 14 and 15 of stat, i.e. 11 and 12 after ')'; 100 Hz.
     (ticks(11) + ticks(12)) / 100.0
+}
+
+/// Training pieces: world steps per second on one core (with observation encoding) and
+/// learner samples x epochs per second (one PPO update, CleanRL's defaults).
+fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use rand::{Rng, SeedableRng};
+    let w = load_world("exp1-tree")?;
+    let spec = w.obs_spec();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let actions: Vec<u8> = (0..4096)
+        .map(|_| rng.random_range(0..w.num_actions() as u8))
+        .collect();
+    let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
+    let steps = if quick { 2_000_000 } else { 20_000_000 };
+    let mut ep = w.reset();
+    let mut done = 0u64;
+    let t0 = Instant::now();
+    for i in 0..steps {
+        let out = w.env_step(&mut ep, actions[i % actions.len()]);
+        w.observe(&ep.state, &mut g, &mut f);
+        if out.terminated || out.truncated {
+            done += 1;
+            ep = w.reset();
+        }
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    ensure!(
+        done > 0 && g.iter().any(|&x| x != 0),
+        "the world did not run"
+    );
+    figs.push(Figure {
+        zero_ok: false,
+        name: "world steps/s, one core, with observation".into(),
+        value: steps as f64 / secs,
+        unit: "steps/s",
+        note: format!("(exp1-tree, random actions, {done} episodes; goal >= 20M)"),
+    });
+    // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
+    let shape = fulcrum_learner::local::shape_for(&w, 64);
+    let net = fulcrum_learner::net::Net::new(shape, 1, &candle_core::Device::Cpu)?;
+    let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+    let n = 1024;
+    let mut glyphs = vec![0u8; n * spec.cells()];
+    let mut flags = vec![0u8; n * spec.flags];
+    let mut ep = w.reset();
+    for i in 0..n {
+        w.env_step(&mut ep, actions[i]);
+        w.observe(
+            &ep.state,
+            &mut glyphs[i * spec.cells()..(i + 1) * spec.cells()],
+            &mut flags[i * spec.flags..(i + 1) * spec.flags],
+        );
+    }
+    let acts: Vec<u32> = actions[..n].iter().map(|&a| a as u32).collect();
+    let lp = vec![-(w.num_actions() as f32).ln(); n];
+    let vals = vec![0.0f32; n];
+    let adv: Vec<f32> = (0..n)
+        .map(|i| ((i * 37) % 11) as f32 / 10.0 - 0.5)
+        .collect();
+    let ret: Vec<f32> = adv.clone();
+    let cfg = fulcrum_learner::ppo::PpoConfig::default();
+    let data = fulcrum_learner::local::UpdateData {
+        glyphs: &glyphs,
+        flags: &flags,
+        actions: &acts,
+        logprobs: &lp,
+        values: &vals,
+        advantages: &adv,
+        returns: &ret,
+    };
+    let reps = if quick { 3 } else { 11 };
+    let (ms, stats) = median_ms(reps, || {
+        Ok(fulcrum_learner::local::update(
+            &net, &mut adam, &cfg, 2.5e-4, &mut rng, &data,
+        )?)
+    })?;
+    ensure!(stats.value_loss.is_finite(), "the update diverged");
+    figs.push(Figure {
+        zero_ok: false,
+        name: "learner samples x epochs/s".into(),
+        value: (n * cfg.epochs) as f64 / (ms / 1e3),
+        unit: "samples/s",
+        note: format!("(PPO update: {n} samples, {} epochs x {} minibatches, hidden 64, exp1-tree obs; goal >= 200k)", cfg.epochs, cfg.minibatches),
+    });
+    Ok(())
 }
