@@ -16,6 +16,16 @@ mod plot;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();
+    if !matches!(cli.command, cli::Command::Serve(_)) {
+        // A command whose output is cut short (`fulcrum ... | head`) ends quietly, as
+        // Unix tools do, instead of panicking on the broken pipe. The service keeps
+        // ignoring SIGPIPE: its last line may go to a reader that has left, and it must
+        // still stop cleanly.
+        // SAFETY: called first thing in main, before any thread exists.
+        unsafe {
+            libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+        }
+    }
     fulcrum_empowerment::service::quiet_ipc_logs();
     tracing_subscriber::fmt()
         .with_env_filter(

@@ -64,7 +64,8 @@ pub fn run(a: &ServeArgs) -> Result<()> {
     };
     let mut tables = Tables::new(e, cfg)?;
     let (exit, stats) = serve(&mut tables, |d| {
-        println!(
+        let _ = writeln!(
+            std::io::stdout(),
             "fulcrum serve: ready: world {} (hash {:016x}), {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
             w.name,
             d.world_hash,
@@ -79,9 +80,14 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         let _ = std::io::stdout().flush();
     })?;
     let _ = exit;
-    println!(
+    // The reader of our output may be gone (a supervisor that only waited for "ready"):
+    // a failed write must not turn a clean stop into a panic.
+    let _ = writeln!(
+        std::io::stdout(),
         "fulcrum serve: stopped: {} requests, {} states, {} refused",
-        stats.requests, stats.states, stats.refused
+        stats.requests,
+        stats.states,
+        stats.refused
     );
     Ok(())
 }

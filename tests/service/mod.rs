@@ -436,3 +436,29 @@ fn many_clients_at_once() {
         }
     });
 }
+
+#[test]
+fn a_service_whose_output_reader_left_still_stops_cleanly() {
+    // A supervisor may read the service's "ready" line and close the pipe: the final
+    // line must not turn SIGINT into a panic or a death by SIGPIPE.
+    let ns = namespace("pipe");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .args(["serve", "room", "--namespace", &ns])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
+    let ready = lines.next().unwrap().unwrap();
+    assert!(ready.contains("ready"), "{ready}");
+    drop(lines);
+    let ok = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(ok.success());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("panicked"), "{err}");
+}
