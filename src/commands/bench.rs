@@ -691,14 +691,18 @@ fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
     let steps = if quick { 2_000_000 } else { 20_000_000 };
     let mut ep = w.reset();
+    w.observe(&ep.state, &mut g, &mut f);
     let mut done = 0u64;
     let t0 = Instant::now();
     for i in 0..steps {
+        let prev = ep.state;
         let out = w.env_step(&mut ep, actions[i % actions.len()]);
-        w.observe(&ep.state, &mut g, &mut f);
+        w.observe_update(&prev, &ep.state, &mut g, &mut f);
         if out.terminated || out.truncated {
             done += 1;
+            let last = ep.state;
             ep = w.reset();
+            w.observe_update(&last, &ep.state, &mut g, &mut f);
         }
     }
     let secs = t0.elapsed().as_secs_f64();
@@ -711,7 +715,9 @@ fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         name: "world steps/s, one core, with observation".into(),
         value: steps as f64 / secs,
         unit: "steps/s",
-        note: format!("(exp1-tree, random actions, {done} episodes; goal >= 20M)"),
+        note: format!(
+            "(exp1-tree, random actions, {done} episodes, incremental observation; goal >= 20M)"
+        ),
     });
     // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
     let shape = fulcrum_learner::local::shape_for(&w, 64);
