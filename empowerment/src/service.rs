@@ -206,18 +206,16 @@ fn tool_code(t: ToolSel) -> i32 {
 pub fn describe(engine: &Engine, cfg: &ServeConfig) -> Describe {
     let w = engine.world;
     let mut d = Describe {
-        world: [0; 64],
         world_hash: w.content_hash(),
         states: engine.space.len() as u64,
         normal_states: engine.normal_states() as u64,
         n_tools: w.tools.len() as u32,
         n_objects: w.objects.len() as u32,
-        tools: [[0; msg::NAME_BYTES]; 16],
-        objects: [[0; msg::NAME_BYTES]; 16],
         tool: tool_code(cfg.tool),
         object_mask: object_mask(&cfg.objects),
         horizon_unequipped: cfg.horizon_unequipped,
         horizon_equipped: cfg.horizon_equipped,
+        ..empty_describe()
     };
     msg::put_name(&mut d.world, &w.name);
     for (k, t) in w.tools.iter().enumerate() {
@@ -591,7 +589,7 @@ pub enum ClientError {
 #[derive(Debug)]
 pub struct Client {
     _node: Node<ipc::Service>,
-    _svc: Rr,
+    svc: Rr,
     client: IoxClient<ipc::Service, EmpRequest, u128, EmpResponse, ()>,
     wake: Notifier<ipc::Service>,
     listener: Listener<ipc::Service>,
@@ -681,7 +679,7 @@ impl Client {
         let listener_id = listener.id().value();
         let mut c = Client {
             _node: node,
-            _svc: svc,
+            svc,
             client,
             wake,
             listener,
@@ -749,8 +747,10 @@ impl Client {
         objects: u32,
         horizon: u32,
     ) -> Result<(), ClientError> {
-        let raw: Vec<[u8; msg::STATE_BYTES]> = states.iter().map(State::to_bytes).collect();
-        self.send_raw(k, &raw, tool, objects, horizon)
+        // Packed straight into the loaned sample: no copy on the way.
+        self.send_slots(k, states.len(), tool, objects, horizon, |i| {
+            states[i].to_bytes()
+        })
     }
 
     /// Send a request made of raw parts, unchecked (for tests and fuzzing: the service
@@ -763,7 +763,20 @@ impl Client {
         objects: u32,
         horizon: u32,
     ) -> Result<(), ClientError> {
-        if states.len() > MAX_BATCH || self.in_flight.len() >= MAX_IN_FLIGHT {
+        self.send_slots(k, states.len(), tool, objects, horizon, |i| states[i])
+    }
+
+    /// Loan a request, write its header and `n` state slots from `slot`, send it.
+    fn send_slots(
+        &mut self,
+        k: u32,
+        n: usize,
+        tool: i32,
+        objects: u32,
+        horizon: u32,
+        slot: impl Fn(usize) -> [u8; msg::STATE_BYTES],
+    ) -> Result<(), ClientError> {
+        if n > MAX_BATCH || self.in_flight.len() >= MAX_IN_FLIGHT {
             return Err(ClientError::Ipc(format!(
                 "at most {MAX_BATCH} states a request and {MAX_IN_FLIGHT} requests in flight"
             )));
@@ -783,14 +796,14 @@ impl Client {
             let p = req.payload_mut().as_mut_ptr();
             std::ptr::addr_of_mut!((*p).world_hash).write(self.world_hash);
             std::ptr::addr_of_mut!((*p).kind).write(k);
-            std::ptr::addr_of_mut!((*p).count).write(states.len() as u32);
+            std::ptr::addr_of_mut!((*p).count).write(n as u32);
             std::ptr::addr_of_mut!((*p).tool).write(tool);
             std::ptr::addr_of_mut!((*p).horizon).write(horizon);
             std::ptr::addr_of_mut!((*p).objects).write(objects);
             std::ptr::addr_of_mut!((*p).seq).write(self.seq);
             let slots = std::ptr::addr_of_mut!((*p).states) as *mut [u8; msg::STATE_BYTES];
-            for (i, s) in states.iter().enumerate() {
-                slots.add(i).write(*s);
+            for i in 0..n {
+                slots.add(i).write(slot(i));
             }
             req.assume_init()
         };
@@ -873,7 +886,7 @@ impl Client {
                 clean_dead_nodes();
                 if !pending.is_connected()
                     || pending.number_of_server_connections() == 0
-                    || self._svc.dynamic_config().number_of_servers() == 0
+                    || self.svc.dynamic_config().number_of_servers() == 0
                 {
                     if let Ok(Some(r)) = pending.receive() {
                         let p: &EmpResponse = r.payload();

@@ -7,14 +7,12 @@
 //! ## The empowerment service (request-response)
 //!
 //! `fulcrum/<namespace>/empowerment`: a client sends an [`EmpRequest`] (a batch of up to
-//! [`MAX_BATCH`] packed states, [`State::to_bytes`]) and receives one [`EmpResponse`]
+//! [`MAX_BATCH`] packed states, `State::to_bytes`) and receives one [`EmpResponse`]
 //! (one `f32` and one status byte per state). Wake-ups travel on two event services:
 //! clients notify `.../server-wake` after sending; the server notifies the client's own
 //! listener on `.../client-wake`, whose id the client puts in the request's user header.
 
 use iceoryx2::prelude::*;
-
-use crate::state::State;
 
 /// States in one request.
 pub const MAX_BATCH: usize = 1024;
@@ -101,7 +99,7 @@ pub struct EmpRequest {
     pub objects: u32,
     /// Sequence number chosen by the client, echoed in the response.
     pub seq: u32,
-    /// Packed states ([`State::to_bytes`]).
+    /// Packed states (`State::to_bytes`).
     pub states: [[u8; STATE_BYTES]; MAX_BATCH],
 }
 
@@ -169,11 +167,6 @@ pub fn put_name<const N: usize>(dst: &mut [u8; N], s: &str) {
 pub fn get_name(src: &[u8]) -> String {
     let end = src.iter().position(|&b| b == 0).unwrap_or(src.len());
     String::from_utf8_lossy(&src[..end]).into_owned()
-}
-
-/// Pack a state into a request slot.
-pub fn put_state(dst: &mut [u8; STATE_BYTES], s: &State) {
-    *dst = s.to_bytes();
 }
 
 /// Service names of a namespace.

@@ -606,8 +606,7 @@ impl World {
         if (s.x as usize, s.y as usize) == (x, y) {
             return '@';
         }
-        if let Some(b) = self.boulder_on(s, c as u16) {
-            let _ = b;
+        if self.boulder_on(s, c as u16).is_some() {
             return '0';
         }
         if let Some(o) = self.static_object_cell(x, y) {

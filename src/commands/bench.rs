@@ -534,7 +534,7 @@ fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     for (i, s) in batch256.iter().enumerate() {
         req.states[i] = s.to_bytes();
     }
-    let mut resp = Box::new(unsafe_zero_response());
+    let mut resp = Box::new(zeroed_response());
     let t0 = Instant::now();
     let mut n = 0usize;
     while t0.elapsed().as_secs_f64() < secs / 2.0 {
@@ -571,7 +571,7 @@ fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
 }
 
 /// An all-zero response (valid: plain data).
-fn unsafe_zero_response() -> fulcrum_shared::msg::EmpResponse {
+fn zeroed_response() -> fulcrum_shared::msg::EmpResponse {
     // SAFETY: EmpResponse is plain integers, floats and bytes; all-zero is a valid value.
     unsafe { std::mem::zeroed() }
 }

@@ -173,11 +173,12 @@ fn landscape(a: &LandscapeArgs) -> Result<()> {
                     .collect()
             })
             .collect();
+        let drawn = probe_initial(&w, holding);
         let glyphs: Vec<Vec<Option<char>>> = (0..w.height)
             .map(|y| {
                 (0..w.width)
                     .map(|x| {
-                        let g = w.glyph_at(&probe_initial(&w, holding), x, y);
+                        let g = w.glyph_at(&drawn, x, y);
                         (g != '.' && g != '#' && g != '@').then_some(g)
                     })
                     .collect()

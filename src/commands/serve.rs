@@ -63,7 +63,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         spin: Duration::from_micros(100),
     };
     let mut tables = Tables::new(e, cfg)?;
-    let (exit, stats) = serve(&mut tables, |d| {
+    let (_, stats) = serve(&mut tables, |d| {
         let _ = writeln!(
             std::io::stdout(),
             "fulcrum serve: ready: world {} (hash {:016x}), {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
@@ -79,7 +79,6 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         );
         let _ = std::io::stdout().flush();
     })?;
-    let _ = exit;
     // The reader of our output may be gone (a supervisor that only waited for "ready"):
     // a failed write must not turn a clean stop into a panic.
     let _ = writeln!(
