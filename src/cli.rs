@@ -24,8 +24,17 @@ pub enum Command {
     Empowerment(EmpCmd),
     /// Run the empowerment service for one world (until Ctrl-C or SIGTERM).
     Serve(ServeArgs),
+    /// Train a PPO agent with reward R + beta * E: actor processes, the empowerment
+    /// service and a candle learner, connected by shared memory.
+    Train(TrainArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
+    /// (train helper) the learner process of a run.
+    #[command(hide = true, name = "__learner")]
+    Learner(ChildArgs),
+    /// (train helper) an actor process of a run.
+    #[command(hide = true, name = "__actor")]
+    Actor(ChildArgs),
     /// (bench helper) a client process that looks states up for a while.
     #[command(hide = true, name = "__bench-client")]
     BenchClient {
@@ -250,4 +259,103 @@ pub struct BenchArgs {
     /// Also write the figures as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+}
+
+/// `fulcrum train`
+#[derive(Debug, Args)]
+pub struct TrainArgs {
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    #[arg(required_unless_present = "resume")]
+    pub world: Option<String>,
+    /// Weight of the intrinsic reward E (default: the world's [empowerment] beta).
+    #[arg(long, allow_negative_numbers = true)]
+    pub beta: Option<f64>,
+    /// The baseline: no empowerment service, reward R only.
+    #[arg(long)]
+    pub no_empowerment: bool,
+    /// Seed of weights, sampling, minibatches and worlds.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Env steps in all (rounded up to whole updates) [default: 500000].
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Run directory [default: runs/<world>-<time>-<seed>].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Continue the run in this directory from its last checkpoint (its config.toml
+    /// holds the settings; only --steps may raise the budget).
+    #[arg(long, conflicts_with = "out")]
+    pub resume: Option<PathBuf>,
+    /// Actor processes [default: cores - 1, at least 1].
+    #[arg(long)]
+    pub actors: Option<usize>,
+    /// Worlds per actor [default: 8].
+    #[arg(long)]
+    pub envs_per_actor: Option<usize>,
+    /// Steps per chunk (per world per update) [default: 128].
+    #[arg(long)]
+    pub steps_per_chunk: Option<usize>,
+    /// Threads of the learner [default: the cores the actors leave, at least 1].
+    #[arg(long)]
+    pub learner_threads: Option<usize>,
+    /// Hidden units of the network [default: 64].
+    #[arg(long)]
+    pub hidden: Option<usize>,
+    /// Tool of the empowerment channel: a tool, `all`, or `auto` [default: the world's].
+    #[arg(long)]
+    pub tool: Option<String>,
+    /// Objects of interest, joint (`a,b`) [default: the world's].
+    #[arg(long)]
+    pub objects: Option<String>,
+    /// Horizon where the tool is not held [default: the world's].
+    #[arg(long)]
+    pub horizon_unequipped: Option<u32>,
+    /// Horizon where the tool is held [default: the world's].
+    #[arg(long)]
+    pub horizon_equipped: Option<u32>,
+    /// Asynchronous actors: chunks may come from a policy up to N updates old
+    /// [default: 0 = synchronous PPO].
+    #[arg(long)]
+    pub max_policy_lag: Option<u64>,
+    /// Checkpoint every N updates (and at the end) [default: 10].
+    #[arg(long)]
+    pub checkpoint_every: Option<u64>,
+    /// Adam learning rate at the start, annealed to 0 [default: 2.5e-4].
+    #[arg(long)]
+    pub lr: Option<f64>,
+    /// PPO epochs per update [default: 4].
+    #[arg(long)]
+    pub epochs: Option<usize>,
+    /// Minibatches per epoch [default: 4].
+    #[arg(long)]
+    pub minibatches: Option<usize>,
+    /// Stop (with a checkpoint, resumable) after this many updates in this session.
+    #[arg(long, hide = true)]
+    pub stop_after_updates: Option<u64>,
+    /// Restarts of crashed actors or services allowed over the run.
+    #[arg(long, default_value_t = 20)]
+    pub max_restarts: u32,
+}
+
+/// Hidden child processes of `fulcrum train`.
+#[derive(Debug, Args)]
+pub struct ChildArgs {
+    /// The run directory.
+    #[arg(long)]
+    pub run: PathBuf,
+    /// The run's namespace (service names).
+    #[arg(long)]
+    pub namespace: String,
+    /// The supervisor's pid (the child stops when it is gone).
+    #[arg(long)]
+    pub parent: u32,
+    /// Actor index.
+    #[arg(long, default_value_t = 0)]
+    pub index: u32,
+    /// Actor restarts before this one.
+    #[arg(long, default_value_t = 0)]
+    pub incarnation: u32,
+    /// Learner: stop after this many updates of this session.
+    #[arg(long)]
+    pub stop_after_updates: Option<u64>,
 }

@@ -37,7 +37,13 @@ fn main() -> ExitCode {
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let code = if commands::is_bad_input(&e) { 2 } else { 1 };
+            let code = if e.is::<commands::train::Interrupted>() {
+                130
+            } else if commands::is_bad_input(&e) {
+                2
+            } else {
+                1
+            };
             eprintln!("fulcrum: {}", one_line(&e));
             ExitCode::from(code)
         }

@@ -1,6 +1,6 @@
 //! PNG figures for the `fulcrum` binary: landscape heatmaps and time traces.
 //!
-//! Two pictures are drawn:
+//! Three pictures are drawn:
 //!
 //! * [`heatmap_png`]: a map-shaped heatmap, one square cell per map cell, coloured with
 //!   a viridis-like perceptual colour map, the value printed inside each cell with two
@@ -11,6 +11,9 @@
 //!   with markers, the actions taken as x tick labels when there are few steps, and an
 //!   optional categorical series (e.g. the door state) as a step plot in a smaller panel
 //!   underneath.
+//! * [`learning_curve_png`]: a training run's learning curve: the success rate over
+//!   environment steps on top, the mean extrinsic return and the mean intrinsic reward
+//!   per step (two colours, with a legend) underneath.
 //!
 //! Shapes are rasterised with `plotters`' bitmap backend; all text is rendered by this
 //! module from the Hack font embedded in the `epaint_default_fonts` crate (MIT /
@@ -1313,6 +1316,392 @@ fn draw_trace(
     area.present().map_err(draw_err)
 }
 
+// ---------------------------------------------------------------------------------------
+// Learning curve
+// ---------------------------------------------------------------------------------------
+
+/// One row of a learning curve.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CurvePoint {
+    /// Environment steps taken so far (the x axis).
+    pub env_steps: u64,
+    /// Fraction of the finished episodes that succeeded, in [0, 1]; NaN = none finished.
+    pub success_rate: f64,
+    /// Mean extrinsic return of the finished episodes; NaN = none finished.
+    pub extrinsic_return: f64,
+    /// Mean intrinsic reward per step; NaN = not computed.
+    pub intrinsic_mean: f64,
+}
+
+const CURVE_WIDTH: u32 = 800;
+const CURVE_HEIGHT: u32 = 600;
+const SUCCESS_LINE: Rgb = [44, 160, 44];
+const EXTRINSIC_LINE: Rgb = VALUE_LINE;
+const INTRINSIC_LINE: Rgb = CATEGORY_LINE;
+
+/// Where everything of a learning curve goes, in pixels.
+#[derive(Debug, Clone)]
+struct CurveLayout {
+    width: u32,
+    height: u32,
+    title_size: f32,
+    x_lo: f64,
+    x_hi: f64,
+    x_ticks: Vec<(f64, String)>,
+    success: Panel,
+    success_ticks: Vec<(f64, String)>,
+    returns: Panel,
+    returns_ticks: Vec<(f64, String)>,
+    /// x of the rotated y axis titles.
+    y_title_x: i32,
+    /// Top of the x tick labels.
+    x_labels_top: i32,
+    /// Centre line of the x axis title.
+    x_title_y: i32,
+    /// Centre line of the legend (between the panels).
+    legend_y: i32,
+}
+
+/// `lo..hi` widened to whole multiples of a nice step; ticks in it with their labels.
+fn nice_range(lo: f64, hi: f64, max_ticks: usize) -> (f64, f64, Vec<(f64, String)>) {
+    let (_, step) = nice_ticks(lo, hi, max_ticks);
+    let (mut a, mut b) = ((lo / step).floor() * step, (hi / step).ceil() * step);
+    if !(a.is_finite() && b.is_finite() && (b - a).is_finite() && b > a) {
+        (a, b) = (lo, hi);
+    }
+    let (ticks, step) = nice_ticks(a, b, max_ticks + 1);
+    let d = decimals_for(step);
+    let ticks = ticks.into_iter().map(|v| (v, format_value(v, d))).collect();
+    (a, b, ticks)
+}
+
+/// A step count as a short label: `0`, `500`, `25k`, `2.5M`, `1G`.
+fn format_steps(v: f64, step: f64, hi: f64) -> String {
+    if v == 0.0 {
+        return "0".into();
+    }
+    let (unit, suffix) = match hi {
+        h if h >= 1e9 => (1e9, "G"),
+        h if h >= 1e6 => (1e6, "M"),
+        h if h >= 1e4 => (1e3, "k"),
+        _ => (1.0, ""),
+    };
+    let d = decimals_for(step / unit);
+    format!("{}{suffix}", format_value(v / unit, d))
+}
+
+impl CurveLayout {
+    fn new(points: &[CurvePoint], title: &str, font: &FontRef<'static>) -> Self {
+        let (width, height) = (CURVE_WIDTH, CURVE_HEIGHT);
+        let margin = 14;
+        let title_size = fit_size(
+            font,
+            title,
+            TITLE_SIZE,
+            9.0,
+            f64::from(width) - 2.0 * f64::from(margin),
+        );
+
+        // x: from 0 to just past the last step, so that its marker clears the frame; at
+        // least to 10, so that the ticks stay whole steps.
+        let max_steps = points.iter().map(|p| p.env_steps).max().unwrap_or(0);
+        let x_hi = (max_steps as f64).max(10.0) * 1.02;
+        let (ticks, step) = nice_ticks(0.0, x_hi, 9);
+        let x_ticks = ticks
+            .into_iter()
+            .map(|v| (v, format_steps(v, step, x_hi)))
+            .collect();
+
+        // Success rate: always 0..1.
+        let (_, _, success_ticks) = nice_range(0.0, 1.0, 5);
+
+        // Returns and intrinsic reward share the lower panel's axis.
+        let fin = points
+            .iter()
+            .flat_map(|p| [p.extrinsic_return, p.intrinsic_mean])
+            .filter(|v| v.is_finite());
+        let (mut lo, mut hi) = fin.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+        if !(lo.is_finite() && hi.is_finite()) {
+            (lo, hi) = (0.0, 1.0);
+        } else if hi - lo <= 0.0 {
+            // One value: a range around it (0..v or v..0, 0..1 for 0).
+            let v = lo;
+            (lo, hi) = if v > 0.0 {
+                (0.0, v)
+            } else if v < 0.0 {
+                (v, 0.0)
+            } else {
+                (0.0, 1.0)
+            };
+        }
+        if !(hi - lo).is_finite() {
+            (lo, hi) = (lo / 2.0, hi / 2.0);
+        }
+        let (r_lo, r_hi, returns_ticks) = nice_range(lo, hi, 6);
+
+        let tick_w = success_ticks
+            .iter()
+            .chain(&returns_ticks)
+            .map(|(_, s)| text_width(font, s, TICK_SIZE))
+            .fold(0.0, f64::max)
+            .min(200.0);
+        let y_title_x = margin + 10;
+        let left = y_title_x + 14 + tick_w.ceil() as i32 + 12;
+        let plot_w = width as i32 - left - 28;
+        let top = 46;
+        let panel_h = 205;
+        let legend_gap = 40;
+        let success = Panel {
+            left,
+            top,
+            width: plot_w,
+            height: panel_h,
+            y_lo: 0.0,
+            y_hi: 1.0,
+        };
+        let returns = Panel {
+            left,
+            top: top + panel_h + legend_gap,
+            width: plot_w,
+            height: panel_h + 20,
+            y_lo: r_lo,
+            y_hi: r_hi,
+        };
+        let x_labels_top = returns.top + returns.height + 8;
+        Self {
+            width,
+            height,
+            title_size,
+            x_lo: 0.0,
+            x_hi,
+            x_ticks,
+            success,
+            success_ticks,
+            returns,
+            returns_ticks,
+            y_title_x,
+            x_labels_top,
+            x_title_y: x_labels_top + 20 + 18,
+            legend_y: top + panel_h + legend_gap / 2,
+        }
+    }
+
+    /// Pixel x of `steps`.
+    fn px(&self, steps: f64) -> f64 {
+        let t = (steps - self.x_lo) / (self.x_hi - self.x_lo);
+        let t = if t.is_finite() { t } else { 0.0 };
+        f64::from(self.success.left) + t * f64::from(self.success.width)
+    }
+}
+
+/// Draws a learning curve as a PNG at `path` (written atomically), 800 x 600 pixels:
+/// the success rate (0..1) over environment steps on top; the mean extrinsic return and
+/// the mean intrinsic reward per step (on the same axis, with a legend) below.
+///
+/// Points are drawn in order of `env_steps`; NaN and infinite values are skipped (the
+/// line joins the neighbouring points). With no points the axes are drawn empty; a
+/// single point is drawn as a dot.
+pub fn learning_curve_png(
+    path: &Path,
+    title: &str,
+    points: &[CurvePoint],
+) -> Result<(), PlotError> {
+    let font = fonts(path)?;
+    let layout = CurveLayout::new(points, title, font);
+    let (width, height) = (layout.width, layout.height);
+    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    let mut labels = Vec::new();
+    draw_curve(&mut buf, &layout, title, points, &mut labels).map_err(|message| {
+        PlotError::Draw {
+            path: path.to_path_buf(),
+            message,
+        }
+    })?;
+    let mut canvas = Canvas {
+        buf: &mut buf,
+        width,
+        height,
+    };
+    for label in &labels {
+        canvas.text(font, label);
+    }
+    save_png(path, &buf, width, height)
+}
+
+/// One series in a panel: a line through its finite points, markers when they are few,
+/// a dot when there is only one. Values outside the panel's range are clamped to it.
+fn series(
+    area: &Area<'_>,
+    l: &CurveLayout,
+    p: &Panel,
+    pts: &[(f64, f64)],
+    color: Rgb,
+) -> Result<(), String> {
+    let clamp = |y: f64| y.clamp(f64::from(p.top), f64::from(p.top + p.height));
+    let pix: Vec<(i32, i32)> = pts
+        .iter()
+        .filter(|(_, y)| y.is_finite())
+        .map(|&(x, y)| (l.px(x).round() as i32, clamp(p.py(y)).round() as i32))
+        .collect();
+    if pix.len() >= 2 {
+        line(area, pix.clone(), color, 2)?;
+    }
+    let radius = match pix.len() {
+        1 => 4,
+        n if n <= 25 => 3,
+        _ => 0,
+    };
+    for &(x, y) in pix.iter().filter(|_| radius > 0) {
+        area.draw(&Circle::new((x, y), radius, rgb(color).filled()))
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Grid lines, the frame, y ticks and the rotated y title of a panel.
+fn curve_panel(
+    area: &Area<'_>,
+    l: &CurveLayout,
+    p: &Panel,
+    ticks: &[(f64, String)],
+    title: &str,
+    labels: &mut Vec<Label>,
+) -> Result<(), String> {
+    let font = font().ok_or("the embedded font could not be loaded")?;
+    for (x, _) in &l.x_ticks {
+        let xi = l.px(*x).round() as i32;
+        line(area, vec![(xi, p.top), (xi, p.top + p.height)], GRID, 1)?;
+    }
+    for (y, text) in ticks {
+        let py = p.py(*y);
+        let yi = py.round() as i32;
+        line(area, vec![(p.left, yi), (p.left + p.width, yi)], GRID, 1)?;
+        line(area, vec![(p.left - 5, yi), (p.left, yi)], AXIS, 1)?;
+        labels.push(Label::new(
+            text.clone(),
+            f64::from(p.left - 8),
+            py,
+            TICK_SIZE,
+            HAlign::Right,
+            VAlign::Middle,
+        ));
+    }
+    frame(area, p)?;
+    let size = fit_size(font, title, LABEL_SIZE, 9.0, f64::from(p.height) - 8.0);
+    labels.push(
+        Label::new(
+            title,
+            f64::from(l.y_title_x),
+            f64::from(p.top) + f64::from(p.height) / 2.0,
+            size,
+            HAlign::Center,
+            VAlign::Middle,
+        )
+        .vertical(),
+    );
+    Ok(())
+}
+
+fn draw_curve(
+    buf: &mut [u8],
+    l: &CurveLayout,
+    title: &str,
+    points: &[CurvePoint],
+    labels: &mut Vec<Label>,
+) -> Result<(), String> {
+    let font = font().ok_or("the embedded font could not be loaded")?;
+    let area = BitMapBackend::with_buffer(buf, (l.width, l.height)).into_drawing_area();
+    area.fill(&WHITE).map_err(draw_err)?;
+    labels.push(Label::new(
+        title,
+        f64::from(l.width) / 2.0,
+        22.0,
+        l.title_size,
+        HAlign::Center,
+        VAlign::Middle,
+    ));
+
+    let mut sorted: Vec<&CurvePoint> = points.iter().collect();
+    sorted.sort_by_key(|p| p.env_steps);
+    let xy = |f: fn(&CurvePoint) -> f64| -> Vec<(f64, f64)> {
+        sorted.iter().map(|p| (p.env_steps as f64, f(p))).collect()
+    };
+
+    curve_panel(
+        &area,
+        l,
+        &l.success,
+        &l.success_ticks,
+        "success rate",
+        labels,
+    )?;
+    series(&area, l, &l.success, &xy(|p| p.success_rate), SUCCESS_LINE)?;
+
+    let r = l.returns;
+    curve_panel(&area, l, &r, &l.returns_ticks, "reward", labels)?;
+    if r.y_lo < 0.0 && r.y_hi > 0.0 {
+        let y0 = r.py(0.0).round() as i32;
+        line(
+            &area,
+            vec![(r.left, y0), (r.left + r.width, y0)],
+            [170, 170, 170],
+            1,
+        )?;
+    }
+    series(&area, l, &r, &xy(|p| p.intrinsic_mean), INTRINSIC_LINE)?;
+    series(&area, l, &r, &xy(|p| p.extrinsic_return), EXTRINSIC_LINE)?;
+
+    // Legend, right-aligned between the panels: a line sample and a name per series.
+    let entries = [
+        ("extrinsic return (mean per episode)", EXTRINSIC_LINE),
+        ("intrinsic reward (mean per step)", INTRINSIC_LINE),
+    ];
+    let mut x = f64::from(r.left + r.width);
+    let y = l.legend_y;
+    for (name, color) in entries.iter().rev() {
+        let w = text_width(font, name, TICK_SIZE);
+        labels.push(Label::new(
+            *name,
+            x,
+            f64::from(y),
+            TICK_SIZE,
+            HAlign::Right,
+            VAlign::Middle,
+        ));
+        x -= w + 6.0;
+        let xi = x.round() as i32;
+        line(&area, vec![(xi - 22, y), (xi, y)], *color, 3)?;
+        x -= 22.0 + 18.0;
+    }
+
+    // x axis under the lower panel.
+    let axis_y = r.top + r.height;
+    for (v, text) in &l.x_ticks {
+        let x = l.px(*v);
+        let xi = x.round() as i32;
+        line(&area, vec![(xi, axis_y), (xi, axis_y + 5)], AXIS, 1)?;
+        labels.push(Label::new(
+            text.clone(),
+            x,
+            f64::from(l.x_labels_top),
+            TICK_SIZE,
+            HAlign::Center,
+            VAlign::Top,
+        ));
+    }
+    labels.push(Label::new(
+        "environment steps",
+        f64::from(r.left) + f64::from(r.width) / 2.0,
+        f64::from(l.x_title_y),
+        LABEL_SIZE,
+        HAlign::Center,
+        VAlign::Middle,
+    ));
+    area.present().map_err(draw_err)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1685,10 +2074,143 @@ mod tests {
         assert!(nice_ticks(f64::NAN, 1.0, 5).0.is_empty());
     }
 
-    /// Renders the two example pictures for looking at:
+    fn synthetic_curve(n: usize) -> Vec<CurvePoint> {
+        (0..n)
+            .map(|i| {
+                let t = i as f64 / n.max(2) as f64;
+                CurvePoint {
+                    env_steps: (i as u64 + 1) * 40_960,
+                    success_rate: 1.0 / (1.0 + (-10.0 * (t - 0.5)).exp()),
+                    extrinsic_return: -0.4 + 1.3 * t + 0.05 * (i as f64).sin(),
+                    intrinsic_mean: 0.3 * (-3.0 * t).exp(),
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn learning_curve_png_draws_both_panels() {
+        let dir = TempDir::new("curve");
+        let path = dir.0.join("curve.png");
+        let points = synthetic_curve(50);
+        learning_curve_png(&path, "PPO + object empowerment, key-door", &points).expect("curve");
+        let img = decode(&path);
+        assert_eq!((img.width, img.height), (CURVE_WIDTH, CURVE_HEIGHT));
+        let first = img.pixel(0, 0);
+        assert!(
+            img.rgb.chunks_exact(3).any(|p| p != first),
+            "the picture is a single colour"
+        );
+        let count = |c: Rgb| img.rgb.chunks_exact(3).filter(|p| *p == c).count();
+        for (name, c) in [
+            ("success", SUCCESS_LINE),
+            ("extrinsic", EXTRINSIC_LINE),
+            ("intrinsic", INTRINSIC_LINE),
+        ] {
+            assert!(
+                count(c) > 200,
+                "the {name} line is missing ({} px)",
+                count(c)
+            );
+        }
+        // The success line reaches the last point where the layout says.
+        let layout = CurveLayout::new(&points, "t", font().expect("font"));
+        let last = points[49];
+        let (x, y) = (
+            layout.px(last.env_steps as f64),
+            layout.success.py(last.success_rate),
+        );
+        let (x, y) = (x.round() as i32, y.round() as i32);
+        assert!(
+            (-2..=2).any(|dx| (-2..=2).any(|dy| img.pixel(x + dx, y + dy) == SUCCESS_LINE)),
+            "no success line at the last point ({x}, {y})"
+        );
+        assert!(layout.returns.y_lo <= -0.4 && layout.returns.y_hi >= 0.9);
+        assert!(layout.x_hi >= 50.0 * 40_960.0);
+        // Tick labels of steps are short.
+        assert!(
+            layout.x_ticks.iter().any(|(_, s)| s.ends_with('M')),
+            "{:?}",
+            layout.x_ticks
+        );
+        assert!(no_temp_files(&dir.0));
+    }
+
+    #[test]
+    fn learning_curve_edge_cases_do_not_panic() {
+        let dir = TempDir::new("curve-edge");
+        let nan = f64::NAN;
+        let pt = |s: u64, a: f64, b: f64, c: f64| CurvePoint {
+            env_steps: s,
+            success_rate: a,
+            extrinsic_return: b,
+            intrinsic_mean: c,
+        };
+        let mut mixed = synthetic_curve(30);
+        for (i, p) in mixed.iter_mut().enumerate() {
+            if i % 4 == 1 {
+                p.success_rate = nan;
+                p.extrinsic_return = f64::INFINITY;
+            }
+        }
+        mixed.reverse();
+        let cases: Vec<Vec<CurvePoint>> = vec![
+            vec![],
+            vec![pt(0, 0.5, 1.0, 0.1)],
+            vec![pt(12_345, nan, nan, nan)],
+            vec![pt(0, nan, nan, nan), pt(10, nan, nan, nan)],
+            vec![pt(100, 2.0, -5.0, -5.0), pt(100, -1.0, -5.0, -5.0)],
+            vec![
+                pt(u64::MAX, 1.0, f64::MAX, -f64::MAX),
+                pt(0, 0.0, 0.0, 1e-300),
+            ],
+            vec![pt(5, 0.0, 0.0, 0.0); 3],
+            mixed,
+            synthetic_curve(5000),
+        ];
+        for (i, points) in cases.iter().enumerate() {
+            let path = dir.0.join(format!("curve{i}.png"));
+            learning_curve_png(&path, "a learning curve", points).expect("curve draws");
+            let img = decode(&path);
+            assert_eq!((img.width, img.height), (CURVE_WIDTH, CURVE_HEIGHT));
+        }
+        // A single point is drawn as a dot.
+        let path = dir.0.join("dot.png");
+        learning_curve_png(&path, "", &[pt(1000, 0.5, 1.0, 0.1)]).expect("dot");
+        let img = decode(&path);
+        let count = |c: Rgb| img.rgb.chunks_exact(3).filter(|p| *p == c).count();
+        assert!(count(SUCCESS_LINE) > 10 && count(EXTRINSIC_LINE) > 10);
+        // A long title shrinks rather than widening the picture.
+        let path = dir.0.join("long.png");
+        learning_curve_png(&path, &"a very long title ".repeat(20), &[]).expect("long");
+        assert_eq!(decode(&path).width, CURVE_WIDTH);
+        // Errors name the file.
+        let e = learning_curve_png(&dir.0.join("missing").join("c.png"), "", &[])
+            .expect_err("missing dir");
+        assert!(e.to_string().contains("c.png"), "{e}");
+        assert!(no_temp_files(&dir.0));
+        assert_eq!(format_steps(0.0, 500.0, 5000.0), "0");
+        assert_eq!(format_steps(2_500_000.0, 2_500_000.0, 1e7), "2.5M");
+        assert_eq!(format_steps(20_000.0, 10_000.0, 1e5), "20k");
+        assert_eq!(format_steps(750.0, 250.0, 1000.0), "750");
+        // Step ticks are whole numbers even for a run with almost no steps.
+        for n in [0, 1, 3] {
+            let layout = CurveLayout::new(&[pt(n, 0.0, 0.0, 0.0)], "", font().expect("font"));
+            assert!(
+                layout
+                    .x_ticks
+                    .iter()
+                    .all(|(v, s)| v.fract() == 0.0 && !s.contains('.')),
+                "{:?}",
+                layout.x_ticks
+            );
+        }
+    }
+
+    /// Renders the example pictures for looking at:
     /// `cargo test plot::tests::render_examples -- --ignored`.
     #[test]
-    #[ignore = "writes /tmp/plot-heatmap.png and /tmp/plot-trace.png for inspection"]
+    #[ignore = "writes /tmp/plot-heatmap.png, /tmp/plot-trace.png and /tmp/plot-curve.png for inspection"]
     fn render_examples() {
         let (values, rock, glyphs) = example_grid();
         heatmap_png(
@@ -1714,5 +2236,11 @@ mod tests {
             },
         )
         .expect("trace");
+        learning_curve_png(
+            Path::new("/tmp/plot-curve.png"),
+            "PPO + object empowerment on key-door",
+            &synthetic_curve(50),
+        )
+        .expect("curve");
     }
 }

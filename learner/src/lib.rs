@@ -5,6 +5,12 @@
 //! from termination ([`gae`]). [`local`] trains in one process (the reference loop that
 //! the multi-process training of `fulcrum train` distributes).
 
+/// Checkpoints: weights, optimiser state, counters, written atomically.
+pub mod checkpoint;
+/// The run configuration (`config.toml`).
+pub mod config;
+/// The PPO update on flat buffers (hand-written forward and backward, fused Adam).
+pub mod fused;
 /// Generalised advantage estimation with termination and truncation.
 pub mod gae;
 /// Single-process training loop.
@@ -13,5 +19,7 @@ pub mod local;
 pub mod net;
 /// The PPO loss, Adam and gradient clipping.
 pub mod ppo;
+/// The learner process of `fulcrum train`.
+pub mod run;
 
 pub use gae::{gae, Rollout};

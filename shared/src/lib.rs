@@ -22,6 +22,8 @@ pub mod msg;
 pub mod parse;
 /// The packed state and its text form.
 pub mod state;
+/// Trajectory chunks and policy weights in shared memory.
+pub mod traj;
 /// The world, the rule table and the exact dynamics.
 pub mod world;
 

@@ -4,7 +4,7 @@
 //! Figures are medians of repeated runs in one process. Nothing here asserts a speed:
 //! the command fails only when a benchmark breaks (an error, a wrong count, a zero).
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use anyhow::{ensure, Context, Result};
 use fulcrum_empowerment::{enumerate, propagate, Engine, Limits, Method, StateSpace, ToolSel};
@@ -126,6 +126,8 @@ pub fn run(a: BenchArgs) -> Result<()> {
     empowerment_big(a.quick, &mut figs)?;
     service_figures(a.quick, &mut figs)?;
     training_figures(a.quick, &mut figs)?;
+    chunk_transport(a.quick, &mut figs)?;
+    end_to_end(a.quick, &mut figs)?;
 
     println!(
         "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
@@ -765,6 +767,158 @@ fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         value: (n * cfg.epochs) as f64 / (ms / 1e3),
         unit: "samples/s",
         note: format!("(PPO update: {n} samples, {} epochs x {} minibatches, hidden 64, exp1-tree obs; goal >= 200k)", cfg.epochs, cfg.minibatches),
+    });
+    Ok(())
+}
+
+/// Trajectory chunks through iceoryx2 shared memory: a publisher thread writes every
+/// byte of each loaned chunk (as an actor does) and sends it; the subscriber copies each
+/// chunk out (as the learner does). Two nodes, the run's own service builders.
+fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
+    use iceoryx2::prelude::*;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Arc;
+    let w = load_world("exp1-tree")?;
+    let spec = w.obs_spec();
+    // The default chunk of `fulcrum train exp1-tree`: 8 worlds x 128 steps.
+    let layout = ChunkLayout {
+        envs: 8,
+        steps: 128,
+        cells: spec.cells(),
+        flags: spec.flags,
+    };
+    let bytes = layout.bytes();
+    let ns = format!("bench-chunks-{}", std::process::id());
+    let names = TrainNames::new(&ns);
+    let secs = if quick { 1.0 } else { 3.0 };
+    let done = Arc::new(AtomicBool::new(false));
+    let ready = Arc::new(AtomicBool::new(false));
+    let (names2, done2, ready2) = (names.clone(), done.clone(), ready.clone());
+    let publisher = std::thread::spawn(move || -> Result<u64> {
+        let node = NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()?;
+        let svc = traj::trajectory_service(&node, &names2).map_err(anyhow::Error::msg)?;
+        let p = svc
+            .publisher_builder()
+            .initial_max_slice_len(bytes)
+            .max_loaned_samples(2)
+            .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+            .create()?;
+        while !ready2.load(Ordering::Acquire) {
+            std::thread::yield_now();
+        }
+        let mut sent = 0u64;
+        while !done2.load(Ordering::Relaxed) {
+            let mut s = p.loan_slice(bytes)?;
+            let b: &mut [u8] = s.payload_mut();
+            b.fill(sent as u8);
+            *s.user_header_mut() = ChunkHeader {
+                seq: sent,
+                len: bytes as u64,
+                ..ChunkHeader::default()
+            };
+            s.send()?;
+            sent += 1;
+        }
+        Ok(sent)
+    });
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()?;
+    let svc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
+    let sub = svc.subscriber_builder().create()?;
+    // Wait until the publisher is connected.
+    let t_conn = Instant::now();
+    while svc.dynamic_config().number_of_publishers() == 0 {
+        ensure!(
+            t_conn.elapsed() < Duration::from_secs(10),
+            "no chunk publisher"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    ready.store(true, Ordering::Release);
+    let mut buf: Vec<u8> = Vec::with_capacity(bytes);
+    let mut got = 0u64;
+    let mut checksum = 0u64;
+    let t0 = Instant::now();
+    while t0.elapsed().as_secs_f64() < secs {
+        if let Some(s) = sub.receive()? {
+            buf.clear();
+            buf.extend_from_slice(s.payload());
+            checksum = checksum.wrapping_add(buf[bytes / 2] as u64);
+            got += 1;
+        } else {
+            std::hint::spin_loop();
+        }
+    }
+    let el = t0.elapsed().as_secs_f64();
+    done.store(true, Ordering::Relaxed);
+    // Drain so a publisher blocked on a full queue can see `done`.
+    let t_end = Instant::now();
+    while !publisher.is_finished() && t_end.elapsed() < Duration::from_secs(10) {
+        while let Ok(Some(_)) = sub.receive() {}
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let sent = publisher
+        .join()
+        .map_err(|_| anyhow::anyhow!("chunk publisher panicked"))??;
+    ensure!(got > 0 && sent >= got, "no chunk arrived");
+    let _ = checksum;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "chunk transport".into(),
+        value: got as f64 * bytes as f64 / el / 1e9,
+        unit: "GB/s",
+        note: format!(
+            "({} KiB chunks of 8 worlds x 128 steps, exp1-tree; written in the loan, copied out; {:.0} chunks/s)",
+            bytes / 1024,
+            got as f64 / el
+        ),
+    });
+    Ok(())
+}
+
+/// End-to-end `fulcrum train exp1-tree` with empowerment: env steps per second of the
+/// learner's updates (median over updates after the first), defaults for this machine.
+fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let steps = if quick { 16_384 } else { 102_400 };
+    let exe = std::env::current_exe()?;
+    let out = std::process::Command::new(exe)
+        .args(["train", "exp1-tree", "--steps", &steps.to_string(), "--out"])
+        .arg(&dir)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .output()?;
+    ensure!(
+        out.status.success(),
+        "fulcrum train failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = fulcrum_learner::run::read_metrics(&dir.join("metrics.csv"))?;
+    let cfg = fulcrum_learner::config::RunConfig::load(&dir.join("config.toml"))
+        .map_err(anyhow::Error::msg)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
+    ensure!(!sps.is_empty(), "the run made too few updates");
+    sps.sort_by(f64::total_cmp);
+    figs.push(Figure {
+        zero_ok: false,
+        name: "end-to-end training env steps/s".into(),
+        value: sps[sps.len() / 2],
+        unit: "steps/s",
+        note: format!(
+            "(train exp1-tree, beta {}, {} actor(s) x {} worlds, {} learner thread(s), median of {} updates; goal >= 50k)",
+            cfg.beta,
+            cfg.actors,
+            cfg.envs_per_actor,
+            cfg.learner_threads,
+            sps.len()
+        ),
     });
     Ok(())
 }

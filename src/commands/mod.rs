@@ -10,6 +10,7 @@ use crate::cli::{Command, MethodArg};
 pub mod bench;
 pub mod empowerment;
 pub mod serve;
+pub mod train;
 pub mod world;
 
 /// A mistake in what the user asked for: one sentence, exit code 2.
@@ -54,6 +55,9 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Empowerment(c) => empowerment::run(c),
         Command::Serve(a) => serve::run(&a),
         Command::Bench(a) => bench::run(a),
+        Command::Train(a) => train::run(&a),
+        Command::Learner(a) => train::learner_process(&a),
+        Command::Actor(a) => train::actor_process(&a),
         Command::BenchClient {
             namespace,
             world,

@@ -1,0 +1,259 @@
+//! A training run's resolved configuration: what `config.toml` in the run directory
+//! holds, and what the supervisor, the learner and every actor read.
+//!
+//! One update consumes `actors` chunks of `envs_per_actor x steps_per_chunk`
+//! transitions: the batch is `B = actors * envs_per_actor * steps_per_chunk` env steps,
+//! and the run makes `ceil(total_steps / B)` updates.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::ppo::PpoConfig;
+
+/// The resolved configuration of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// fulcrum's version that wrote the file.
+    pub fulcrum_version: String,
+    /// The run's id (its directory name by default).
+    pub run_id: String,
+    /// World as given: a built-in name or a path.
+    pub world: String,
+    /// The world's name.
+    pub world_name: String,
+    /// [`fulcrum_shared::World::content_hash`], hex: a resumed run checks it.
+    pub world_hash: String,
+    /// Seed of weights, sampling, minibatches and worlds.
+    pub seed: u64,
+    /// Env steps in all (rounded up to whole updates).
+    pub total_steps: u64,
+    /// Actor processes.
+    pub actors: usize,
+    /// Worlds per actor (M).
+    pub envs_per_actor: usize,
+    /// Steps per chunk (T).
+    pub steps_per_chunk: usize,
+    /// Threads of the learner process.
+    pub learner_threads: usize,
+    /// Hidden units.
+    pub hidden: usize,
+    /// Intrinsic reward weight (0 with `empowerment = false`).
+    pub beta: f64,
+    /// Whether actors ask the empowerment service for E.
+    pub empowerment: bool,
+    /// Tool of the channel (`auto`, a kind, or `all`).
+    pub tool: String,
+    /// Objects of interest, comma separated (empty = the world's default).
+    pub objects: String,
+    /// Horizon where the tool is not held.
+    pub horizon_unequipped: u32,
+    /// Horizon where it is held.
+    pub horizon_equipped: u32,
+    /// 0 = synchronous PPO; N = chunks may be made by a policy up to N versions old.
+    pub max_policy_lag: u64,
+    /// Checkpoint every this many updates (and at the end).
+    pub checkpoint_every: u64,
+    /// Discount.
+    pub gamma: f32,
+    /// GAE lambda.
+    pub gae_lambda: f32,
+    /// PPO clip range.
+    pub clip: f32,
+    /// Entropy coefficient.
+    pub ent_coef: f32,
+    /// Value-loss coefficient.
+    pub vf_coef: f32,
+    /// Epochs per update.
+    pub epochs: usize,
+    /// Minibatches per epoch.
+    pub minibatches: usize,
+    /// Global gradient-norm limit.
+    pub max_grad_norm: f32,
+    /// Adam learning rate at the start (annealed linearly to 0).
+    pub lr: f64,
+}
+
+impl RunConfig {
+    /// Env steps per update.
+    pub fn batch(&self) -> usize {
+        self.actors * self.envs_per_actor * self.steps_per_chunk
+    }
+
+    /// Updates in the run.
+    pub fn updates(&self) -> u64 {
+        self.total_steps.div_ceil(self.batch().max(1) as u64).max(1)
+    }
+
+    /// The PPO hyperparameters.
+    pub fn ppo(&self) -> PpoConfig {
+        PpoConfig {
+            gamma: self.gamma,
+            gae_lambda: self.gae_lambda,
+            clip: self.clip,
+            ent_coef: self.ent_coef,
+            vf_coef: self.vf_coef,
+            epochs: self.epochs,
+            minibatches: self.minibatches,
+            max_grad_norm: self.max_grad_norm,
+            lr: self.lr,
+        }
+    }
+
+    /// The first thing wrong with the configuration, as one sentence.
+    pub fn check(&self) -> Result<(), String> {
+        let b = self.batch();
+        let checks: [(bool, String); 12] = [
+            (self.actors == 0, "--actors must be at least 1".into()),
+            (
+                self.actors > fulcrum_shared::traj::MAX_ACTORS,
+                format!(
+                    "--actors {} is over the limit of {}",
+                    self.actors,
+                    fulcrum_shared::traj::MAX_ACTORS
+                ),
+            ),
+            (
+                self.envs_per_actor == 0 || self.envs_per_actor > 4096,
+                format!("--envs-per-actor {} must be 1 to 4096", self.envs_per_actor),
+            ),
+            (
+                self.steps_per_chunk == 0 || self.steps_per_chunk > 4096,
+                format!(
+                    "--steps-per-chunk {} must be 1 to 4096",
+                    self.steps_per_chunk
+                ),
+            ),
+            (
+                self.learner_threads == 0,
+                "--learner-threads must be at least 1".into(),
+            ),
+            (
+                self.hidden == 0 || self.hidden > 4096,
+                format!("--hidden {} must be 1 to 4096", self.hidden),
+            ),
+            (
+                !self.beta.is_finite() || self.beta < 0.0,
+                format!("--beta {} must be a finite number >= 0", self.beta),
+            ),
+            (self.total_steps == 0, "--steps must be at least 1".into()),
+            (
+                self.minibatches == 0 || self.minibatches > b,
+                format!(
+                    "{} minibatches do not fit a batch of {b} steps",
+                    self.minibatches
+                ),
+            ),
+            (self.epochs == 0, "epochs must be at least 1".into()),
+            (
+                self.checkpoint_every == 0,
+                "--checkpoint-every must be at least 1".into(),
+            ),
+            (
+                !(self.lr.is_finite() && self.lr > 0.0),
+                format!("learning rate {} must be positive", self.lr),
+            ),
+        ];
+        for (bad, why) in checks {
+            if bad {
+                return Err(why);
+            }
+        }
+        for (h, which) in [
+            (self.horizon_unequipped, "--horizon-unequipped"),
+            (self.horizon_equipped, "--horizon-equipped"),
+        ] {
+            if self.empowerment && (h == 0 || h > fulcrum_shared::MAX_HORIZON) {
+                return Err(format!(
+                    "{which} {h} must be 1 to {}",
+                    fulcrum_shared::MAX_HORIZON
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Read `config.toml`.
+    pub fn load(path: &Path) -> Result<RunConfig, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        toml::from_str(&text).map_err(|e| {
+            format!(
+                "{} is not a valid run configuration: {}",
+                path.display(),
+                e.message()
+            )
+        })
+    }
+
+    /// As TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> RunConfig {
+        RunConfig {
+            fulcrum_version: "0".into(),
+            run_id: "r".into(),
+            world: "room".into(),
+            world_name: "room".into(),
+            world_hash: "0".into(),
+            seed: 1,
+            total_steps: 10_000,
+            actors: 2,
+            envs_per_actor: 4,
+            steps_per_chunk: 128,
+            learner_threads: 1,
+            hidden: 64,
+            beta: 0.0,
+            empowerment: false,
+            tool: "auto".into(),
+            objects: String::new(),
+            horizon_unequipped: 2,
+            horizon_equipped: 1,
+            max_policy_lag: 0,
+            checkpoint_every: 10,
+            gamma: 0.99,
+            gae_lambda: 0.95,
+            clip: 0.2,
+            ent_coef: 0.01,
+            vf_coef: 0.5,
+            epochs: 4,
+            minibatches: 4,
+            max_grad_norm: 0.5,
+            lr: 2.5e-4,
+        }
+    }
+
+    #[test]
+    fn batch_and_updates() {
+        let c = cfg();
+        assert_eq!(c.batch(), 1024);
+        // ceil(10000 / 1024) = 10.
+        assert_eq!(c.updates(), 10);
+    }
+
+    #[test]
+    fn toml_round_trip_and_checks() {
+        let c = cfg();
+        let back: RunConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+        assert!(c.check().is_ok());
+        let mut bad = c.clone();
+        bad.beta = -1.0;
+        assert!(bad.check().unwrap_err().contains("--beta"));
+        let mut bad = c.clone();
+        bad.actors = 0;
+        assert!(bad.check().unwrap_err().contains("--actors"));
+        let mut bad = c;
+        bad.empowerment = true;
+        bad.horizon_equipped = 0;
+        assert!(bad.check().unwrap_err().contains("--horizon-equipped"));
+    }
+}

@@ -1,0 +1,688 @@
+//! The learner process of `fulcrum train`: gathers trajectory chunks from shared memory,
+//! runs PPO, publishes weights, writes `metrics.csv` and checkpoints.
+//!
+//! Per update u (of U), with K = `actors` chunks:
+//!
+//! 1. gather K valid chunks: synchronous mode takes one chunk per actor made by the
+//!    current policy version v; with `max_policy_lag = L` any chunk with
+//!    `v - L <= version <= v` counts. Invalid chunks (shape, action range, non-finite
+//!    numbers, another run or world) and stale ones are dropped and counted, never used;
+//! 2. order them by (actor, sequence) so the update does not depend on arrival order;
+//! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
+//!    from the chunk's `trunc_value`, termination does not);
+//! 4. PPO on the concatenated batch with `lr = lr0 * (1 - u / U)`;
+//! 5. publish the weights as version v + 1, append a metrics row, checkpoint every N
+//!    updates and at the end (weights, Adam moments and step, the minibatch RNG,
+//!    counters, and each actor's episode records, so that a resumed run continues
+//!    exactly where the checkpoint was taken).
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use candle_core::Device;
+use fulcrum_shared::traj::{
+    self, read_f32s, ChunkHeader, ChunkLayout, Section, TrainNames, WeightsHeader,
+};
+use fulcrum_shared::World;
+use iceoryx2::prelude::*;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::checkpoint::{self, Extra};
+use crate::config::RunConfig;
+use crate::gae::{gae, Rollout};
+use crate::local::{shape_for, update, UpdateData};
+use crate::net::Net;
+use crate::ppo::{Adam, Stats};
+
+/// The columns of `metrics.csv`, in order.
+pub const METRICS_COLUMNS: &[&str] = &[
+    "update",
+    "env_steps",
+    "episodes",
+    "extrinsic_return",
+    "success_rate",
+    "intrinsic_return",
+    "intrinsic_mean",
+    "episode_length",
+    "pickup_rate",
+    "policy_loss",
+    "value_loss",
+    "entropy",
+    "approx_kl",
+    "clip_frac",
+    "sps",
+    "policy_lag",
+    "dropped_chunks",
+    "actor_restarts",
+    "wall_s",
+];
+
+/// One row of `metrics.csv`.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MetricsRow {
+    /// Updates done (1-based).
+    pub update: u64,
+    /// Env steps so far.
+    pub env_steps: u64,
+    /// Episodes finished in this update.
+    pub episodes: u64,
+    /// Mean extrinsic return of those episodes (NaN when none finished).
+    pub extrinsic_return: f64,
+    /// Fraction of those that reached the task's terminal state.
+    pub success_rate: f64,
+    /// Mean intrinsic return (sum of E in bits) of those episodes.
+    pub intrinsic_return: f64,
+    /// Mean E(s_{t+1}) per step in this update, bits.
+    pub intrinsic_mean: f64,
+    /// Mean length of those episodes.
+    pub episode_length: f64,
+    /// Fraction of those episodes in which a tool was picked up.
+    pub pickup_rate: f64,
+    /// PPO diagnostics.
+    pub stats: Stats,
+    /// Env steps per second over this update (collection + learning).
+    pub sps: f64,
+    /// Mean policy lag of the chunks used (0 in synchronous mode).
+    pub policy_lag: f64,
+    /// Chunks dropped so far (invalid or stale).
+    pub dropped_chunks: u64,
+    /// Actor restarts so far.
+    pub actor_restarts: u64,
+    /// Wall time of the run so far (seconds, over all resumes).
+    pub wall_s: f64,
+}
+
+impl MetricsRow {
+    /// The CSV line (no newline).
+    pub fn csv(&self) -> String {
+        let f = |x: f64| {
+            if x.is_finite() {
+                format!("{x}")
+            } else {
+                String::new()
+            }
+        };
+        [
+            self.update.to_string(),
+            self.env_steps.to_string(),
+            self.episodes.to_string(),
+            f(self.extrinsic_return),
+            f(self.success_rate),
+            f(self.intrinsic_return),
+            f(self.intrinsic_mean),
+            f(self.episode_length),
+            f(self.pickup_rate),
+            f(self.stats.policy_loss as f64),
+            f(self.stats.value_loss as f64),
+            f(self.stats.entropy as f64),
+            f(self.stats.approx_kl as f64),
+            f(self.stats.clip_frac as f64),
+            f(self.sps),
+            f(self.policy_lag),
+            self.dropped_chunks.to_string(),
+            self.actor_restarts.to_string(),
+            f(self.wall_s),
+        ]
+        .join(",")
+    }
+
+    /// Parse a CSV line written by [`MetricsRow::csv`] (empty fields are NaN).
+    pub fn parse(line: &str) -> Option<MetricsRow> {
+        let v: Vec<&str> = line.trim_end().split(',').collect();
+        if v.len() != METRICS_COLUMNS.len() {
+            return None;
+        }
+        let f = |i: usize| -> Option<f64> {
+            if v[i].is_empty() {
+                Some(f64::NAN)
+            } else {
+                v[i].parse().ok()
+            }
+        };
+        let u = |i: usize| -> Option<u64> { v[i].parse().ok() };
+        Some(MetricsRow {
+            update: u(0)?,
+            env_steps: u(1)?,
+            episodes: u(2)?,
+            extrinsic_return: f(3)?,
+            success_rate: f(4)?,
+            intrinsic_return: f(5)?,
+            intrinsic_mean: f(6)?,
+            episode_length: f(7)?,
+            pickup_rate: f(8)?,
+            stats: Stats {
+                policy_loss: f(9)? as f32,
+                value_loss: f(10)? as f32,
+                entropy: f(11)? as f32,
+                approx_kl: f(12)? as f32,
+                clip_frac: f(13)? as f32,
+            },
+            sps: f(14)?,
+            policy_lag: f(15)?,
+            dropped_chunks: u(16)?,
+            actor_restarts: u(17)?,
+            wall_s: f(18)?,
+        })
+    }
+}
+
+/// Read a run's `metrics.csv` (rows that do not parse are skipped).
+pub fn read_metrics(path: &Path) -> std::io::Result<Vec<MetricsRow>> {
+    let text = std::fs::read_to_string(path)?;
+    Ok(text.lines().skip(1).filter_map(MetricsRow::parse).collect())
+}
+
+/// Paths inside a run directory.
+#[derive(Debug, Clone)]
+pub struct RunPaths {
+    /// The directory.
+    pub dir: PathBuf,
+}
+
+impl RunPaths {
+    /// `config.toml`.
+    pub fn config(&self) -> PathBuf {
+        self.dir.join("config.toml")
+    }
+    /// `metrics.csv`.
+    pub fn metrics(&self) -> PathBuf {
+        self.dir.join("metrics.csv")
+    }
+    /// `checkpoints/latest.safetensors`.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.dir.join("checkpoints").join("latest.safetensors")
+    }
+    /// `plots/`.
+    pub fn plots(&self) -> PathBuf {
+        self.dir.join("plots")
+    }
+}
+
+/// Why the learner stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LearnerExit {
+    /// Every update done; final checkpoint written.
+    Finished,
+    /// Asked to stop; a checkpoint of the last finished update was written.
+    Interrupted,
+}
+
+/// Learner failures.
+#[derive(Debug, thiserror::Error)]
+pub enum LearnerError {
+    /// The run directory or its files.
+    #[error("{0}")]
+    Run(String),
+    /// A checkpoint could not be written or read.
+    #[error(transparent)]
+    Checkpoint(#[from] checkpoint::CheckpointError),
+    /// candle failed.
+    #[error("candle: {0}")]
+    Candle(#[from] candle_core::Error),
+    /// iceoryx2 failed.
+    #[error("shared memory: {0}")]
+    Ipc(String),
+}
+
+/// A chunk copied out of shared memory.
+struct Chunk {
+    h: ChunkHeader,
+    data: Vec<u8>,
+}
+
+/// Counters a checkpoint carries.
+#[derive(Debug, Clone, Copy, Default)]
+struct Counters {
+    update: u64,
+    env_steps: u64,
+    episodes: u64,
+    dropped: u64,
+    wall_s: f64,
+}
+
+fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
+    move |e| LearnerError::Ipc(format!("{what}: {e:?}"))
+}
+
+/// Run the learner until every update is done or `stop` is set. `progress` gets each
+/// metrics row as it is written.
+pub fn run_learner(
+    world: &World,
+    cfg: &RunConfig,
+    paths: &RunPaths,
+    namespace: &str,
+    stop: &'static AtomicBool,
+    mut progress: impl FnMut(&MetricsRow, u64),
+) -> Result<LearnerExit, LearnerError> {
+    let dev = Device::Cpu;
+    let shape = shape_for(world, cfg.hidden);
+    let net = Net::new(shape, cfg.seed, &dev)?;
+    let mut adam = Adam::new(&net)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);
+    let mut ctr = Counters::default();
+    let mut env_blobs: BTreeMap<String, Vec<u8>> = BTreeMap::new();
+    let ckpt = paths.checkpoint();
+    if ckpt.exists() {
+        let extra = checkpoint::load(&ckpt, &net, &mut adam)?;
+        let get = |k: &str| extra.counters.get(k).copied().unwrap_or(0);
+        ctr.update = get("update");
+        ctr.env_steps = get("env_steps");
+        ctr.episodes = get("episodes");
+        ctr.dropped = get("dropped_chunks");
+        ctr.wall_s = extra.floats.get("wall_s").copied().unwrap_or(0.0);
+        if let Some(r) = extra
+            .blobs
+            .get("learner_rng")
+            .and_then(|b| checkpoint::rng_restore(b))
+        {
+            rng = r;
+        }
+        env_blobs = extra
+            .blobs
+            .into_iter()
+            .filter(|(k, _)| k.starts_with("env/"))
+            .collect();
+        trim_metrics(&paths.metrics(), ctr.update)?;
+        tracing::info!(update = ctr.update, "resumed from checkpoint");
+    }
+    let updates = cfg.updates();
+    let world_hash = world.content_hash();
+    let run = traj::run_tag(namespace);
+    let layout = ChunkLayout {
+        envs: cfg.envs_per_actor,
+        steps: cfg.steps_per_chunk,
+        cells: shape.cells,
+        flags: shape.flags,
+    };
+
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .map_err(|e| ipc("node")(&e))?;
+    let names = TrainNames::new(namespace);
+    let tsvc = traj::trajectory_service(&node, &names).map_err(LearnerError::Ipc)?;
+    let sub = tsvc
+        .subscriber_builder()
+        .create()
+        .map_err(|e| ipc("subscriber")(&e))?;
+    let twake = traj::wake_service(&node, &names.trajectories_wake).map_err(LearnerError::Ipc)?;
+    let listener = twake
+        .listener_builder()
+        .create()
+        .map_err(|e| ipc("listener")(&e))?;
+    let psvc = traj::policy_service(&node, &names).map_err(LearnerError::Ipc)?;
+    let publisher = psvc
+        .publisher_builder()
+        .initial_max_slice_len(net.len())
+        .max_loaned_samples(2)
+        .create()
+        .map_err(|e| ipc("publisher")(&e))?;
+    let pwake = traj::wake_service(&node, &names.policy_wake).map_err(LearnerError::Ipc)?;
+    let notifier = pwake
+        .notifier_builder()
+        .create()
+        .map_err(|e| ipc("notifier")(&e))?;
+
+    let publish = |version: u64| -> Result<(), LearnerError> {
+        let flat = net.flat()?;
+        let mut s = publisher
+            .loan_slice_uninit(flat.len())
+            .map_err(|e| ipc("loan weights")(&e))?;
+        *s.user_header_mut() = WeightsHeader {
+            run,
+            world_hash,
+            version,
+            len: flat.len() as u64,
+        };
+        let s = s.write_from_slice(&flat);
+        s.send().map_err(|e| ipc("send weights")(&e))?;
+        let _ = notifier.notify();
+        Ok(())
+    };
+    publish(ctr.update)?;
+
+    let mut metrics = open_metrics(&paths.metrics())?;
+    let mut restarts: BTreeMap<u32, u32> = BTreeMap::new();
+    let mut pending: Vec<Chunk> = Vec::new();
+    let ppo = cfg.ppo();
+    let started = Instant::now();
+    let wall0 = ctr.wall_s;
+    let mut last = Instant::now();
+    let n_actions = world.num_actions();
+    while ctr.update < updates {
+        let version = ctr.update;
+        // 1. Gather.
+        let mut batch: Vec<Chunk> = Vec::with_capacity(cfg.actors);
+        // Chunks received earlier that are still usable.
+        for c in std::mem::take(&mut pending) {
+            admit(c, version, cfg, &mut batch, &mut pending, &mut ctr.dropped);
+        }
+        let mut idle = Instant::now();
+        while batch.len() < cfg.actors {
+            if stop.load(Ordering::Relaxed) {
+                ctr.wall_s = wall0 + started.elapsed().as_secs_f64();
+                save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
+                return Ok(LearnerExit::Interrupted);
+            }
+            let mut got = false;
+            while let Some(sample) = sub.receive().map_err(|e| ipc("receive")(&e))? {
+                got = true;
+                let h = *sample.user_header();
+                let payload: &[u8] = sample.payload();
+                if h.run != run || h.world_hash != world_hash {
+                    ctr.dropped += 1;
+                    tracing::warn!(actor = h.actor, "dropped a chunk of another run or world");
+                    continue;
+                }
+                if let Err(why) = layout.validate(&h, n_actions, payload) {
+                    ctr.dropped += 1;
+                    tracing::warn!(actor = h.actor, seq = h.seq, why, "dropped a bad chunk");
+                    continue;
+                }
+                let r = restarts.entry(h.actor).or_default();
+                *r = (*r).max(h.incarnation);
+                let c = Chunk {
+                    h,
+                    data: payload.to_vec(),
+                };
+                admit(c, version, cfg, &mut batch, &mut pending, &mut ctr.dropped);
+                if batch.len() >= cfg.actors {
+                    break;
+                }
+            }
+            if !got && batch.len() < cfg.actors {
+                let _ = listener.timed_wait(|_| {}, Duration::from_millis(50));
+                if idle.elapsed() > Duration::from_secs(1) {
+                    // Weights may have been missed by a (re)started actor: repeat them.
+                    idle = Instant::now();
+                    publish(version)?;
+                }
+            }
+        }
+        batch.sort_by_key(|c| (c.h.actor, c.h.incarnation, c.h.seq));
+
+        // 2. Rewards and GAE per chunk, concatenated.
+        let (m, t_len) = (layout.envs, layout.steps);
+        let n = m * t_len;
+        let total = n * batch.len();
+        let (c_len, f_len) = (layout.cells, layout.flags);
+        let mut d_glyphs = Vec::with_capacity(total * c_len);
+        let mut d_flags = Vec::with_capacity(total * f_len);
+        let mut d_actions = Vec::with_capacity(total);
+        let mut d_lp = vec![0.0f32; total];
+        let mut d_val = vec![0.0f32; total];
+        let mut d_adv = Vec::with_capacity(total);
+        let mut d_ret = Vec::with_capacity(total);
+        let mut row = MetricsRow::default();
+        let (mut ext_sum, mut int_ret_sum, mut len_sum, mut int_sum, mut lag_sum) =
+            (0.0, 0.0, 0.0, 0.0, 0.0);
+        let (mut episodes, mut successes, mut pickups) = (0u64, 0u64, 0u64);
+        let mut ext = vec![0.0f32; n];
+        let mut int = vec![0.0f32; n];
+        let mut tv = vec![0.0f32; n];
+        let mut lv = vec![0.0f32; m];
+        for (k, c) in batch.iter().enumerate() {
+            let p = &c.data;
+            d_glyphs.extend_from_slice(&p[layout.range(Section::Glyphs)]);
+            d_flags.extend_from_slice(&p[layout.range(Section::Flags)]);
+            d_actions.extend(p[layout.range(Section::Actions)].iter().map(|&a| a as u32));
+            read_f32s(
+                &p[layout.range(Section::Logprob)],
+                &mut d_lp[k * n..(k + 1) * n],
+            );
+            read_f32s(
+                &p[layout.range(Section::Value)],
+                &mut d_val[k * n..(k + 1) * n],
+            );
+            read_f32s(&p[layout.range(Section::ExtReward)], &mut ext);
+            read_f32s(&p[layout.range(Section::IntReward)], &mut int);
+            read_f32s(&p[layout.range(Section::TruncValue)], &mut tv);
+            read_f32s(&p[layout.range(Section::LastValue)], &mut lv);
+            let beta = cfg.beta as f32;
+            let rewards: Vec<f32> = ext.iter().zip(&int).map(|(r, e)| r + beta * e).collect();
+            let term: Vec<bool> = p[layout.range(Section::Terminated)]
+                .iter()
+                .map(|&b| b == 1)
+                .collect();
+            let trunc: Vec<bool> = p[layout.range(Section::Truncated)]
+                .iter()
+                .map(|&b| b == 1)
+                .collect();
+            let (adv, ret) = gae(
+                &Rollout {
+                    envs: m,
+                    rewards: &rewards,
+                    values: &d_val[k * n..(k + 1) * n],
+                    terminated: &term,
+                    truncated: &trunc,
+                    truncated_values: &tv,
+                    last_values: &lv,
+                },
+                ppo.gamma,
+                ppo.gae_lambda,
+            );
+            d_adv.extend_from_slice(&adv);
+            d_ret.extend_from_slice(&ret);
+            episodes += c.h.episodes as u64;
+            successes += c.h.successes as u64;
+            pickups += c.h.pickups as u64;
+            ext_sum += c.h.ext_return_sum;
+            int_ret_sum += c.h.int_return_sum;
+            len_sum += c.h.length_sum;
+            int_sum += c.h.int_reward_sum;
+            lag_sum += (version - c.h.policy_version.min(version)) as f64;
+            env_blobs.insert(
+                format!("env/{}", c.h.actor),
+                p[layout.range(Section::EnvState)].to_vec(),
+            );
+        }
+
+        // 3. PPO.
+        let lr = ppo.lr * (1.0 - ctr.update as f64 / updates as f64);
+        row.stats = update(
+            &net,
+            &mut adam,
+            &ppo,
+            lr,
+            &mut rng,
+            &UpdateData {
+                glyphs: &d_glyphs,
+                flags: &d_flags,
+                actions: &d_actions,
+                logprobs: &d_lp,
+                values: &d_val,
+                advantages: &d_adv,
+                returns: &d_ret,
+            },
+        )?;
+        ctr.update += 1;
+        ctr.env_steps += total as u64;
+        ctr.episodes += episodes;
+        publish(ctr.update)?;
+
+        // 4. Metrics and checkpoints.
+        let per_ep = |x: f64| {
+            if episodes > 0 {
+                x / episodes as f64
+            } else {
+                f64::NAN
+            }
+        };
+        let now = Instant::now();
+        row.update = ctr.update;
+        row.env_steps = ctr.env_steps;
+        row.episodes = episodes;
+        row.extrinsic_return = per_ep(ext_sum);
+        row.success_rate = per_ep(successes as f64);
+        row.intrinsic_return = per_ep(int_ret_sum);
+        row.intrinsic_mean = int_sum / total as f64;
+        row.episode_length = per_ep(len_sum);
+        row.pickup_rate = per_ep(pickups as f64);
+        row.sps = total as f64 / now.duration_since(last).as_secs_f64().max(1e-9);
+        row.policy_lag = lag_sum / batch.len() as f64;
+        row.dropped_chunks = ctr.dropped;
+        row.actor_restarts = restarts.values().map(|&r| r as u64).sum();
+        row.wall_s = wall0 + started.elapsed().as_secs_f64();
+        last = now;
+        writeln!(metrics, "{}", row.csv())
+            .and_then(|_| metrics.flush())
+            .map_err(|e| {
+                LearnerError::Run(format!(
+                    "cannot append to {}: {e}",
+                    paths.metrics().display()
+                ))
+            })?;
+        progress(&row, updates);
+        if ctr.update % cfg.checkpoint_every == 0 || ctr.update == updates {
+            ctr.wall_s = row.wall_s;
+            save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
+        }
+    }
+    Ok(LearnerExit::Finished)
+}
+
+/// Put a received chunk where it belongs: into this update's batch, back into
+/// `pending` (made by a newer policy than the learner's: cannot happen in order, kept
+/// for safety), or dropped as stale.
+fn admit(
+    c: Chunk,
+    version: u64,
+    cfg: &RunConfig,
+    batch: &mut Vec<Chunk>,
+    pending: &mut Vec<Chunk>,
+    dropped: &mut u64,
+) {
+    let v = c.h.policy_version;
+    if v > version {
+        pending.push(c);
+        return;
+    }
+    let lag = version - v;
+    let fresh = if cfg.max_policy_lag == 0 {
+        lag == 0 && !batch.iter().any(|b| b.h.actor == c.h.actor)
+    } else {
+        lag <= cfg.max_policy_lag
+    };
+    if fresh && batch.len() < cfg.actors {
+        batch.push(c);
+    } else if fresh {
+        pending.push(c);
+    } else {
+        *dropped += 1;
+        tracing::debug!(actor = c.h.actor, v, version, "dropped a stale chunk");
+    }
+}
+
+fn save(
+    paths: &RunPaths,
+    net: &Net,
+    adam: &Adam,
+    rng: &ChaCha8Rng,
+    ctr: &Counters,
+    env_blobs: &BTreeMap<String, Vec<u8>>,
+) -> Result<(), LearnerError> {
+    let mut extra = Extra::default();
+    extra.counters.insert("update".into(), ctr.update);
+    extra.counters.insert("env_steps".into(), ctr.env_steps);
+    extra.counters.insert("episodes".into(), ctr.episodes);
+    extra.counters.insert("dropped_chunks".into(), ctr.dropped);
+    extra.floats.insert("wall_s".into(), ctr.wall_s);
+    extra
+        .blobs
+        .insert("learner_rng".into(), checkpoint::rng_state(rng));
+    for (k, v) in env_blobs {
+        extra.blobs.insert(k.clone(), v.clone());
+    }
+    let path = paths.checkpoint();
+    if let Some(dir) = path.parent() {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| LearnerError::Run(format!("cannot create {}: {e}", dir.display())))?;
+    }
+    checkpoint::save(&path, net, adam, &extra)?;
+    Ok(())
+}
+
+/// Open `metrics.csv` for appending, writing the header if it is new.
+fn open_metrics(path: &Path) -> Result<std::fs::File, LearnerError> {
+    let fresh = !path.exists()
+        || std::fs::metadata(path)
+            .map(|m| m.len() == 0)
+            .unwrap_or(true);
+    let mut f = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)
+        .map_err(|e| LearnerError::Run(format!("cannot open {}: {e}", path.display())))?;
+    if fresh {
+        writeln!(f, "{}", METRICS_COLUMNS.join(","))
+            .map_err(|e| LearnerError::Run(format!("cannot write {}: {e}", path.display())))?;
+    }
+    Ok(f)
+}
+
+/// Keep the header and the rows of updates `<= upto` (rows written after the last
+/// checkpoint belong to updates that will be redone); rewritten atomically.
+fn trim_metrics(path: &Path, upto: u64) -> Result<(), LearnerError> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(());
+    };
+    let mut out = String::new();
+    for (i, line) in text.lines().enumerate() {
+        let keep = i == 0
+            || MetricsRow::parse(line)
+                .map(|r| r.update <= upto)
+                .unwrap_or(false);
+        if keep {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    if out != text {
+        let tmp = path.with_extension("csv.tmp");
+        std::fs::write(&tmp, &out)
+            .and_then(|_| std::fs::rename(&tmp, path))
+            .map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn metrics_row_round_trips() {
+        let r = MetricsRow {
+            update: 3,
+            env_steps: 3072,
+            episodes: 7,
+            extrinsic_return: 0.5,
+            success_rate: 0.25,
+            intrinsic_return: f64::NAN,
+            intrinsic_mean: 0.125,
+            episode_length: 43.5,
+            pickup_rate: 1.0,
+            stats: Stats {
+                policy_loss: -0.01,
+                value_loss: 0.2,
+                entropy: 1.9,
+                approx_kl: 0.003,
+                clip_frac: 0.1,
+            },
+            sps: 1234.5,
+            policy_lag: 0.0,
+            dropped_chunks: 2,
+            actor_restarts: 1,
+            wall_s: 9.75,
+        };
+        let line = r.csv();
+        assert_eq!(line.split(',').count(), METRICS_COLUMNS.len());
+        let back = MetricsRow::parse(&line).unwrap();
+        assert!(back.intrinsic_return.is_nan());
+        assert_eq!(back.csv(), line);
+    }
+}

@@ -1,0 +1,466 @@
+//! Trajectory chunks and policy weights in shared memory.
+//!
+//! ## Trajectories (publish-subscribe, actors -> learner)
+//!
+//! `fulcrum/<namespace>/trajectories` carries one chunk per message: a [`ChunkHeader`]
+//! (iceoryx2 user header) and a byte payload laid out by [`ChunkLayout`]. With M worlds
+//! per actor and T steps per chunk, N = M * T transitions, C cells and F flags, the
+//! payload is, in order (step-major: transition `i = t * M + e`):
+//!
+//! ```text
+//! glyphs      N*C  u8    observation o_t
+//! flags       N*F  u8
+//! actions     N    u8    a_t
+//! terminated  N    u8    s_{t+1} is the task's terminal state
+//! truncated   N    u8    the episode ran out of steps at s_{t+1} (not terminal)
+//! env_state   M*56 u8    each world's episode after the chunk (for exact resume)
+//! logprob     N    f32   log pi(a_t | o_t) under the chunk's policy version
+//! value       N    f32   V(o_t)
+//! ext_reward  N    f32   the task's reward r_t
+//! int_reward  N    f32   E(s_{t+1}) in bits, from the empowerment service (0 without)
+//! trunc_value N    f32   V(o_{t+1}) where truncated (bootstrap), else 0
+//! last_value  M    f32   V of each world's observation after the chunk
+//! ```
+//!
+//! f32 sections are little-endian bytes (no alignment assumed). Actors write straight
+//! into the loaned sample; the learner validates every chunk ([`ChunkLayout::validate`])
+//! before it copies anything out. The service is built with safe overflow off: a full
+//! learner queue blocks actors (backpressure), it never drops chunks.
+//!
+//! ## Policy weights (publish-subscribe, learner -> actors)
+//!
+//! `fulcrum/<namespace>/policy` carries the network's parameters as one flat `f32`
+//! slice with a [`WeightsHeader`]; history 1, so an actor that starts (or restarts)
+//! late receives the current weights at once.
+//!
+//! Each data service has an event service beside it (`.../wake`): senders notify after
+//! sending so that receivers can block on a listener instead of polling.
+
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
+
+use crate::{Episode, State};
+
+/// Most actor processes of one run.
+pub const MAX_ACTORS: usize = 64;
+/// Chunks the learner's queue holds per actor before actors block.
+pub const CHUNK_QUEUE: usize = 4;
+/// Bytes of one world's episode record in `env_state`.
+pub const ENV_BYTES: usize = 56;
+
+/// Metadata of one trajectory chunk.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("fulcrum::ChunkHeader")]
+#[repr(C)]
+pub struct ChunkHeader {
+    /// The run's tag ([`run_tag`] of the namespace): chunks of other runs are refused.
+    pub run: u64,
+    /// [`crate::World::content_hash`].
+    pub world_hash: u64,
+    /// The actor's chunk counter (per incarnation, from 0).
+    pub seq: u64,
+    /// The policy version that chose the actions.
+    pub policy_version: u64,
+    /// Actor index.
+    pub actor: u32,
+    /// How many times this actor was restarted before this process.
+    pub incarnation: u32,
+    /// M.
+    pub envs: u32,
+    /// T.
+    pub steps: u32,
+    /// C.
+    pub cells: u32,
+    /// F.
+    pub flags: u32,
+    /// Number of actions (for the range check).
+    pub actions: u32,
+    /// Episodes that ended in this chunk.
+    pub episodes: u32,
+    /// Of those, how many reached the task's terminal state.
+    pub successes: u32,
+    /// Episodes in which a tool was picked up.
+    pub pickups: u32,
+    /// Sum over ended episodes of the extrinsic return.
+    pub ext_return_sum: f64,
+    /// Sum over ended episodes of the intrinsic return (sum of E, bits).
+    pub int_return_sum: f64,
+    /// Sum over ended episodes of their length.
+    pub length_sum: f64,
+    /// Sum over all N transitions of E(s_{t+1}).
+    pub int_reward_sum: f64,
+    /// Payload bytes.
+    pub len: u64,
+}
+
+/// Metadata of a weights message.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[type_name("fulcrum::WeightsHeader")]
+#[repr(C)]
+pub struct WeightsHeader {
+    /// The run's tag.
+    pub run: u64,
+    /// World hash.
+    pub world_hash: u64,
+    /// Policy version (0 = the initial weights; +1 per update).
+    pub version: u64,
+    /// Floats in the payload.
+    pub len: u64,
+}
+
+/// A section of a chunk's payload.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Section {
+    /// `u8`, N*C.
+    Glyphs,
+    /// `u8`, N*F.
+    Flags,
+    /// `u8`, N.
+    Actions,
+    /// `u8`, N (0/1).
+    Terminated,
+    /// `u8`, N (0/1).
+    Truncated,
+    /// M * [`ENV_BYTES`].
+    EnvState,
+    /// `f32`, N.
+    Logprob,
+    /// `f32`, N.
+    Value,
+    /// `f32`, N.
+    ExtReward,
+    /// `f32`, N.
+    IntReward,
+    /// `f32`, N.
+    TruncValue,
+    /// `f32`, M.
+    LastValue,
+}
+
+/// Offsets of a chunk's sections.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ChunkLayout {
+    /// M.
+    pub envs: usize,
+    /// T.
+    pub steps: usize,
+    /// C.
+    pub cells: usize,
+    /// F.
+    pub flags: usize,
+}
+
+impl ChunkLayout {
+    /// N = M * T.
+    pub fn n(&self) -> usize {
+        self.envs * self.steps
+    }
+
+    /// Byte range of a section.
+    pub fn range(&self, s: Section) -> std::ops::Range<usize> {
+        let n = self.n();
+        let m = self.envs;
+        let order = [
+            (Section::Glyphs, n * self.cells),
+            (Section::Flags, n * self.flags),
+            (Section::Actions, n),
+            (Section::Terminated, n),
+            (Section::Truncated, n),
+            (Section::EnvState, m * ENV_BYTES),
+            (Section::Logprob, 4 * n),
+            (Section::Value, 4 * n),
+            (Section::ExtReward, 4 * n),
+            (Section::IntReward, 4 * n),
+            (Section::TruncValue, 4 * n),
+            (Section::LastValue, 4 * m),
+        ];
+        let mut off = 0;
+        for (k, len) in order {
+            if k == s {
+                return off..off + len;
+            }
+            off += len;
+        }
+        unreachable!("every section is in the table")
+    }
+
+    /// Payload bytes.
+    pub fn bytes(&self) -> usize {
+        self.range(Section::LastValue).end
+    }
+
+    /// The layout a header announces.
+    pub fn of(h: &ChunkHeader) -> ChunkLayout {
+        ChunkLayout {
+            envs: h.envs as usize,
+            steps: h.steps as usize,
+            cells: h.cells as usize,
+            flags: h.flags as usize,
+        }
+    }
+
+    /// Check a received chunk against what the learner expects: sizes, action range,
+    /// 0/1 flags, finite floats. Returns a short reason when the chunk must be dropped.
+    pub fn validate(
+        &self,
+        h: &ChunkHeader,
+        actions: usize,
+        payload: &[u8],
+    ) -> Result<(), &'static str> {
+        if ChunkLayout::of(h) != *self || h.actions as usize != actions {
+            return Err("shape differs from the run's");
+        }
+        if h.len as usize != self.bytes() || payload.len() != self.bytes() {
+            return Err("payload length differs from its layout");
+        }
+        if payload[self.range(Section::Actions)]
+            .iter()
+            .any(|&a| a as usize >= actions)
+        {
+            return Err("action out of range");
+        }
+        for s in [Section::Terminated, Section::Truncated] {
+            if payload[self.range(s)].iter().any(|&b| b > 1) {
+                return Err("done flag not 0 or 1");
+            }
+        }
+        for s in [
+            Section::Logprob,
+            Section::Value,
+            Section::ExtReward,
+            Section::IntReward,
+            Section::TruncValue,
+            Section::LastValue,
+        ] {
+            if payload[self.range(s)]
+                .chunks_exact(4)
+                .any(|b| !f32::from_le_bytes([b[0], b[1], b[2], b[3]]).is_finite())
+            {
+                return Err("a number is not finite");
+            }
+        }
+        let sums = [
+            h.ext_return_sum,
+            h.int_return_sum,
+            h.length_sum,
+            h.int_reward_sum,
+        ];
+        if sums.iter().any(|x| !x.is_finite()) || h.successes > h.episodes {
+            return Err("episode statistics are not valid");
+        }
+        Ok(())
+    }
+}
+
+/// Read an f32 section into `out`.
+pub fn read_f32s(bytes: &[u8], out: &mut [f32]) {
+    for (o, b) in out.iter_mut().zip(bytes.chunks_exact(4)) {
+        *o = f32::from_le_bytes([b[0], b[1], b[2], b[3]]);
+    }
+}
+
+/// Write `v` as the `i`-th f32 of a section.
+#[inline]
+pub fn put_f32(bytes: &mut [u8], i: usize, v: f32) {
+    bytes[4 * i..4 * i + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+/// One world's episode record: the episode and its running returns, for exact resume.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EnvRecord {
+    /// The episode.
+    pub episode: Episode,
+    /// Extrinsic return so far.
+    pub ext_return: f32,
+    /// Intrinsic return so far.
+    pub int_return: f32,
+    /// Whether a tool was picked up in this episode.
+    pub picked: bool,
+}
+
+impl EnvRecord {
+    /// A fresh record.
+    pub fn new(episode: Episode) -> EnvRecord {
+        EnvRecord {
+            episode,
+            ext_return: 0.0,
+            int_return: 0.0,
+            picked: false,
+        }
+    }
+
+    /// [`ENV_BYTES`] bytes: state (38), t (4), rewarded (2), returns (2 x 4), picked (1),
+    /// padding (3).
+    pub fn to_bytes(&self) -> [u8; ENV_BYTES] {
+        let mut b = [0u8; ENV_BYTES];
+        b[..38].copy_from_slice(&self.episode.state.to_bytes());
+        b[38..42].copy_from_slice(&self.episode.t.to_le_bytes());
+        b[42..44].copy_from_slice(&self.episode.rewarded.to_le_bytes());
+        b[44..48].copy_from_slice(&self.ext_return.to_le_bytes());
+        b[48..52].copy_from_slice(&self.int_return.to_le_bytes());
+        b[52] = self.picked as u8;
+        b
+    }
+
+    /// From [`EnvRecord::to_bytes`].
+    pub fn from_bytes(b: &[u8]) -> Option<EnvRecord> {
+        if b.len() != ENV_BYTES {
+            return None;
+        }
+        let sb: [u8; 38] = b[..38].try_into().ok()?;
+        let f = |i: usize| [b[i], b[i + 1], b[i + 2], b[i + 3]];
+        Some(EnvRecord {
+            episode: Episode {
+                state: State::from_bytes(&sb),
+                t: u32::from_le_bytes(f(38)),
+                rewarded: u16::from_le_bytes([b[42], b[43]]),
+            },
+            ext_return: f32::from_le_bytes(f(44)),
+            int_return: f32::from_le_bytes(f(48)),
+            picked: b[52] == 1,
+        })
+    }
+}
+
+/// Service names of a training run.
+#[derive(Debug, Clone)]
+pub struct TrainNames {
+    /// Chunks.
+    pub trajectories: String,
+    /// Actors notify the learner here after sending a chunk.
+    pub trajectories_wake: String,
+    /// Weights.
+    pub policy: String,
+    /// The learner notifies actors here after publishing weights.
+    pub policy_wake: String,
+}
+
+impl TrainNames {
+    /// `fulcrum/<namespace>/...`.
+    pub fn new(namespace: &str) -> TrainNames {
+        TrainNames {
+            trajectories: format!("fulcrum/{namespace}/trajectories"),
+            trajectories_wake: format!("fulcrum/{namespace}/trajectories/wake"),
+            policy: format!("fulcrum/{namespace}/policy"),
+            policy_wake: format!("fulcrum/{namespace}/policy/wake"),
+        }
+    }
+}
+
+/// A run's tag: FNV-1a of its namespace (never 0).
+pub fn run_tag(namespace: &str) -> u64 {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    for b in namespace.bytes() {
+        h ^= b as u64;
+        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    }
+    h.max(1)
+}
+
+/// The trajectory service.
+pub type TrajFactory = PubSubFactory<ipc::Service, [u8], ChunkHeader>;
+/// The weights service.
+pub type PolicyFactory = PubSubFactory<ipc::Service, [f32], WeightsHeader>;
+/// A chunk publisher.
+pub type ChunkPublisher = Publisher<ipc::Service, [u8], ChunkHeader>;
+/// A chunk subscriber.
+pub type ChunkSubscriber = Subscriber<ipc::Service, [u8], ChunkHeader>;
+/// A weights publisher.
+pub type WeightsPublisher = Publisher<ipc::Service, [f32], WeightsHeader>;
+/// A weights subscriber.
+pub type WeightsSubscriber = Subscriber<ipc::Service, [f32], WeightsHeader>;
+
+fn name(s: &str) -> Result<ServiceName, String> {
+    ServiceName::new(s).map_err(|e| format!("service name {s}: {e:?}"))
+}
+
+/// The trajectory service, built the same way by every process (the first fixes QoS).
+pub fn trajectory_service(
+    node: &Node<ipc::Service>,
+    n: &TrainNames,
+) -> Result<TrajFactory, String> {
+    node.service_builder(&name(&n.trajectories)?)
+        .publish_subscribe::<[u8]>()
+        .user_header::<ChunkHeader>()
+        .max_publishers(MAX_ACTORS + 4)
+        .max_subscribers(2)
+        .max_nodes(MAX_ACTORS + 8)
+        .subscriber_max_buffer_size(CHUNK_QUEUE)
+        .subscriber_max_borrowed_samples(CHUNK_QUEUE)
+        .history_size(0)
+        .enable_safe_overflow(false)
+        .open_or_create()
+        .map_err(|e| format!("trajectory service: {e:?}"))
+}
+
+/// The weights service (history 1: late subscribers get the current weights).
+pub fn policy_service(node: &Node<ipc::Service>, n: &TrainNames) -> Result<PolicyFactory, String> {
+    node.service_builder(&name(&n.policy)?)
+        .publish_subscribe::<[f32]>()
+        .user_header::<WeightsHeader>()
+        .max_publishers(2)
+        .max_subscribers(MAX_ACTORS + 4)
+        .max_nodes(MAX_ACTORS + 8)
+        .subscriber_max_buffer_size(2)
+        .subscriber_max_borrowed_samples(2)
+        .history_size(1)
+        .enable_safe_overflow(true)
+        .open_or_create()
+        .map_err(|e| format!("policy service: {e:?}"))
+}
+
+/// An event service for wake-ups.
+pub fn wake_service(
+    node: &Node<ipc::Service>,
+    service: &str,
+) -> Result<EventFactory<ipc::Service>, String> {
+    node.service_builder(&name(service)?)
+        .event()
+        .max_listeners(MAX_ACTORS + 4)
+        .max_notifiers(MAX_ACTORS + 4)
+        .max_nodes(MAX_ACTORS + 8)
+        .open_or_create()
+        .map_err(|e| format!("event service {service}: {e:?}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sections_tile_the_payload() {
+        let l = ChunkLayout {
+            envs: 3,
+            steps: 5,
+            cells: 7,
+            flags: 2,
+        };
+        // By hand: 15*7 + 15*2 + 15*3 + 3*56 + 4*15*5 + 4*3.
+        assert_eq!(l.bytes(), 105 + 30 + 45 + 168 + 300 + 12);
+        assert_eq!(l.range(Section::Flags), 105..135);
+        assert_eq!(l.range(Section::EnvState), 180..348);
+        assert_eq!(l.range(Section::LastValue), 648..660);
+    }
+
+    #[test]
+    fn env_record_round_trips() {
+        let mut st = State::default();
+        st.x = 3;
+        st.y = 2;
+        st.inventory = 5;
+        let r = EnvRecord {
+            episode: Episode {
+                state: st,
+                t: 77,
+                rewarded: 2,
+            },
+            ext_return: 1.5,
+            int_return: 0.123_456_79,
+            picked: true,
+        };
+        assert_eq!(EnvRecord::from_bytes(&r.to_bytes()), Some(r));
+    }
+}

@@ -1,0 +1,395 @@
+//! `fulcrum train` across real processes: the supervisor, the empowerment service, the
+//! learner and actors, with real iceoryx2 shared memory, real signals and real PPO.
+//! Every run has its own namespace (the supervisor makes one per launch).
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::{Duration, Instant};
+
+use fulcrum_learner::run::{read_metrics, MetricsRow};
+use iceoryx2::prelude::*;
+
+/// A fresh run directory path under the target dir (not created).
+fn run_dir(name: &str) -> PathBuf {
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let d = std::env::temp_dir().join(format!(
+        "fulcrum-train-{name}-{}-{nanos}",
+        std::process::id()
+    ));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// Small, fast settings: batch = actors * 4 worlds * 32 steps.
+const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
+
+fn train(args: &[&str]) -> Child {
+    Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        .arg("train")
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("fulcrum train starts")
+}
+
+/// Wait for a child with a deadline; its stderr as text.
+fn finish(mut c: Child, limit: Duration) -> (ExitStatus, String, String) {
+    let t0 = Instant::now();
+    let mut err_pipe = c.stderr.take().unwrap();
+    let reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = err_pipe.read_to_string(&mut s);
+        s
+    });
+    let mut out_pipe = c.stdout.take().unwrap();
+    let out_reader = std::thread::spawn(move || {
+        let mut s = String::new();
+        let _ = out_pipe.read_to_string(&mut s);
+        s
+    });
+    loop {
+        if let Some(s) = c.try_wait().unwrap() {
+            return (s, reader.join().unwrap(), out_reader.join().unwrap());
+        }
+        if t0.elapsed() > limit {
+            let _ = c.kill();
+            let _ = c.wait();
+            panic!(
+                "fulcrum train did not finish in {limit:?}; stderr: {}",
+                reader.join().unwrap()
+            );
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn namespace_of(stderr: &str) -> String {
+    let i = stderr
+        .find("namespace ")
+        .expect("the supervisor names its namespace");
+    stderr[i + 10..]
+        .split(|c: char| c == ')' || c.is_whitespace())
+        .next()
+        .unwrap()
+        .to_string()
+}
+
+/// Pids of live processes whose command line contains every needle.
+fn pids_with(needles: &[&str]) -> Vec<u32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        let state = std::fs::read_to_string(e.path().join("stat")).unwrap_or_default();
+        let zombie = state.split_whitespace().nth(2) == Some("Z");
+        if !zombie && needles.iter().all(|n| cmd.contains(n)) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+/// iceoryx2 services whose name contains the namespace.
+fn services_of(ns: &str) -> Vec<String> {
+    fulcrum_empowerment::service::quiet_ipc_logs();
+    let mut names = Vec::new();
+    let _ = ipc::Service::list(Config::global_config(), |s| {
+        let n = s.static_details.name().to_string();
+        if n.contains(ns) {
+            names.push(n);
+        }
+        CallbackProgression::Continue
+    });
+    names
+}
+
+/// Nothing of the run is left: no process, no service (after cleaning dead nodes,
+/// which any next start does).
+fn assert_nothing_left(ns: &str) {
+    let t0 = Instant::now();
+    loop {
+        let procs = pids_with(&[ns]);
+        fulcrum_empowerment::service::clean_dead_nodes();
+        let svcs = services_of(ns);
+        if procs.is_empty() && svcs.is_empty() {
+            return;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(5),
+            "left behind: processes {procs:?}, services {svcs:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+fn wait_rows(dir: &Path, n: usize, limit: Duration) {
+    let t0 = Instant::now();
+    while read_metrics(&dir.join("metrics.csv"))
+        .map(|r| r.len())
+        .unwrap_or(0)
+        < n
+    {
+        assert!(t0.elapsed() < limit, "no {n} metrics rows after {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+fn sig(pid: u32, s: &str) {
+    assert!(Command::new("kill")
+        .args([s, &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+}
+
+/// Rows are updates 1..=n with env steps growing by the batch each.
+fn assert_contiguous(rows: &[MetricsRow], n: u64, batch: u64) {
+    assert_eq!(rows.len() as u64, n, "one row per update");
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r.update, i as u64 + 1);
+        assert_eq!(r.env_steps, (i as u64 + 1) * batch);
+    }
+}
+
+#[test]
+fn two_actors_finish_and_leave_nothing_behind() {
+    let dir = run_dir("two");
+    let d = dir.to_str().unwrap();
+    // 2 actors x 4 worlds x 32 steps = 256 steps an update; 2048 steps = 8 updates.
+    let c = train(
+        &[
+            &["room", "--actors", "2", "--steps", "2048", "--out", d][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    let (status, err, out) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_contiguous(&rows, 8, 256);
+    assert!(rows
+        .iter()
+        .all(|r| r.dropped_chunks == 0 && r.policy_lag == 0.0));
+    // The room's E is positive next to the tree with the axe: the service answered.
+    assert!(rows.iter().any(|r| r.intrinsic_mean > 0.0));
+    assert!(dir.join("checkpoints/latest.safetensors").exists());
+    assert!(dir.join("plots/learning-curve.png").exists());
+    let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
+    assert!(cfg.contains("actors = 2") && cfg.contains("fulcrum_version"));
+    assert!(out.contains("done: 2048 env steps"), "{out}");
+    assert_nothing_left(&namespace_of(&err));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_killed_actor_is_replaced_and_the_run_finishes() {
+    let dir = run_dir("kill");
+    let d = dir.to_str().unwrap();
+    // 40 updates of 256 steps.
+    let mut c = train(
+        &[
+            &[
+                "room",
+                "--actors",
+                "2",
+                "--steps",
+                "10240",
+                "--no-empowerment",
+                "--out",
+                d,
+            ][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 3, Duration::from_secs(60));
+    let victims = pids_with(&["__actor", d, "--index 0"]);
+    assert_eq!(victims.len(), 1, "one actor 0: {victims:?}");
+    sig(victims[0], "-KILL");
+    let t0 = Instant::now();
+    loop {
+        if c.try_wait().unwrap().is_some() {
+            break;
+        }
+        let now = pids_with(&["__actor", d, "--index 0"]);
+        if !now.is_empty() && now != victims {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "actor 0 not replaced"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let (status, err, _) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
+    assert!(
+        err.contains("actor 0 stopped (signal 9); restarted"),
+        "{err}"
+    );
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_contiguous(&rows, 40, 256);
+    assert!(rows.last().unwrap().actor_restarts >= 1);
+    assert_nothing_left(&namespace_of(&err));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn sigint_stops_everything_and_resume_continues_the_rows() {
+    let dir = run_dir("sigint");
+    let d = dir.to_str().unwrap();
+    // 1 actor: 128 steps an update; 60 updates.
+    let c = train(
+        &[
+            &[
+                "room",
+                "--actors",
+                "1",
+                "--steps",
+                "7680",
+                "--checkpoint-every",
+                "1000",
+                "--out",
+                d,
+            ][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 4, Duration::from_secs(60));
+    let pid = c.id();
+    sig(pid, "-INT");
+    let t0 = Instant::now();
+    let (status, err, _) = finish(c, Duration::from_secs(30));
+    assert!(
+        t0.elapsed() < Duration::from_secs(5),
+        "stopped in {:?}",
+        t0.elapsed()
+    );
+    assert_eq!(status.code(), Some(130), "{err}");
+    assert!(err.contains("--resume"), "{err}");
+    assert_nothing_left(&namespace_of(&err));
+    // The final checkpoint holds the last finished update (no periodic one was due).
+    let before = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert!(!before.is_empty() && (before.len() as u64) < 60);
+    assert!(dir.join("checkpoints/latest.safetensors").exists());
+
+    let c = train(&["--resume", d]);
+    let (status, err, _) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
+    assert!(err.contains("resuming"), "{err}");
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_contiguous(&rows, 60, 128);
+    // Rows written before the stop are kept as they were.
+    for (a, b) in before.iter().zip(&rows) {
+        assert_eq!(a.csv(), b.csv());
+    }
+    // Wall time continues across the resume.
+    assert!(rows.last().unwrap().wall_s > before.last().unwrap().wall_s);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The columns that must match bit for bit (all but the timings).
+fn deterministic(r: &MetricsRow) -> String {
+    let mut r = *r;
+    r.sps = 0.0;
+    r.wall_s = 0.0;
+    r.csv()
+}
+
+#[test]
+fn a_resumed_run_equals_an_uninterrupted_one_bit_for_bit() {
+    let a = run_dir("exact-a");
+    let b = run_dir("exact-b");
+    // Synchronous, one actor, with empowerment: 6 updates of 128 steps.
+    let common = [
+        &["room", "--actors", "1", "--steps", "768", "--seed", "7"][..],
+        SMALL,
+    ]
+    .concat();
+    let (s, err, _) = finish(
+        train(&[&common[..], &["--out", a.to_str().unwrap()]].concat()),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    let (s, err, out) = finish(
+        train(
+            &[
+                &common[..],
+                &["--out", b.to_str().unwrap(), "--stop-after-updates", "3"],
+            ]
+            .concat(),
+        ),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    assert!(out.contains("stopped as asked"), "{out}");
+    assert_eq!(read_metrics(&b.join("metrics.csv")).unwrap().len(), 3);
+    let (s, err, _) = finish(
+        train(&["--resume", b.to_str().unwrap()]),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    let ra = read_metrics(&a.join("metrics.csv")).unwrap();
+    let rb = read_metrics(&b.join("metrics.csv")).unwrap();
+    assert_eq!(ra.len(), 6);
+    let ra: Vec<String> = ra.iter().map(deterministic).collect();
+    let rb: Vec<String> = rb.iter().map(deterministic).collect();
+    assert_eq!(ra, rb);
+    // And the final weights are the same bits.
+    let dev = candle_core::Device::Cpu;
+    let w = fulcrum_shared::load_world("room").unwrap();
+    let shape = fulcrum_learner::local::shape_for(&w, 64);
+    let flat = |dir: &Path| {
+        let net = fulcrum_learner::net::Net::new(shape, 99, &dev).unwrap();
+        let mut adam = fulcrum_learner::ppo::Adam::new(&net).unwrap();
+        fulcrum_learner::checkpoint::load(
+            &dir.join("checkpoints/latest.safetensors"),
+            &net,
+            &mut adam,
+        )
+        .unwrap();
+        net.flat().unwrap()
+    };
+    let (fa, fb) = (flat(&a), flat(&b));
+    assert!(fa.iter().zip(&fb).all(|(x, y)| x.to_bits() == y.to_bits()));
+    let _ = std::fs::remove_dir_all(&a);
+    let _ = std::fs::remove_dir_all(&b);
+}
+
+#[test]
+fn bad_training_settings_are_refused_before_anything_starts() {
+    let dir = run_dir("bad");
+    let d = dir.to_str().unwrap();
+    for (args, needle) in [
+        (vec!["room", "--beta", "-1", "--out", d], "--beta"),
+        (vec!["room", "--actors", "0", "--out", d], "--actors"),
+        (
+            vec!["room", "--horizon-equipped", "0", "--out", d],
+            "--horizon-equipped",
+        ),
+        (vec!["room", "--tool", "hammer", "--out", d], "unknown tool"),
+        (vec!["no-such-world", "--out", d], "no-such-world"),
+        (vec!["--resume", "/nonexistent/run"], "no config.toml"),
+    ] {
+        let (s, err, _) = finish(train(&args), Duration::from_secs(30));
+        assert_eq!(s.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(
+            !dir.join("config.toml").exists(),
+            "nothing written for {args:?}"
+        );
+    }
+}
