@@ -30,7 +30,7 @@ use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client, ClientError};
 use fulcrum_learner::checkpoint;
 use fulcrum_learner::config::RunConfig;
 use fulcrum_learner::local::shape_for;
-use fulcrum_learner::net::{sample, Net};
+use fulcrum_learner::net::Net;
 use fulcrum_learner::ppo::Adam;
 use fulcrum_shared::msg::{item, MAX_BATCH, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{
@@ -41,6 +41,10 @@ use iceoryx2::port::BackpressureAction;
 use iceoryx2::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
+
+/// The policy evaluated on plain buffers.
+pub mod policy;
+pub use policy::Policy;
 
 /// Actor failures.
 #[derive(Debug, thiserror::Error)]
@@ -88,9 +92,8 @@ pub fn run_actor(
     id: ActorId,
     stop: &'static AtomicBool,
 ) -> Result<(), ActorError> {
-    let dev = Device::Cpu;
     let shape = shape_for(world, cfg.hidden);
-    let net = Net::new(shape, cfg.seed, &dev)?;
+    let mut policy = Policy::new(shape);
     let (m, t_len) = (cfg.envs_per_actor, cfg.steps_per_chunk);
     let layout = ChunkLayout {
         envs: m,
@@ -153,40 +156,21 @@ pub fn run_actor(
         None
     };
 
-    // Take the newest weights; block until some newer than `after` arrive.
-    let take_weights = |after: Option<u64>, block: bool| -> Result<Option<u64>, ActorError> {
-        loop {
-            let mut newest: Option<u64> = None;
-            while let Some(s) = weights.receive().map_err(|e| ipc("receive weights")(&e))? {
-                let h = *s.user_header();
-                if h.run != run || h.world_hash != world_hash || h.len as usize != net.len() {
-                    tracing::warn!("ignored weights of another run or shape");
-                    continue;
-                }
-                if after.is_some_and(|a| h.version <= a) || newest.is_some_and(|v| h.version < v) {
-                    continue;
-                }
-                net.set_flat(s.payload())?;
-                newest = Some(h.version);
-            }
-            if newest.is_some() {
-                return Ok(newest);
-            }
-            if !block || stop.load(Ordering::Relaxed) {
-                return Ok(None);
-            }
-            let _ = listener.timed_wait(|_| {}, Duration::from_millis(50));
-        }
+    let wait = WeightsIn {
+        sub: &weights,
+        listener: &listener,
+        run,
+        world_hash,
+        stop,
     };
-    let Some(v0) = take_weights(None, true)? else {
+    let Some(v0) = wait.take(&mut policy, None, true)? else {
         return Ok(());
     };
     let mut version = v0;
 
     // Worlds: from the checkpoint when it was taken at this policy version.
     let mut envs: Vec<EnvRecord> = (0..m).map(|_| EnvRecord::new(world.reset())).collect();
-    if let Some(recs) = resume_records(checkpoint_path, &net, id.index, v0, m, world) {
-        // Loading the checkpoint set the net to its weights: those of version v0.
+    if let Some(recs) = resume_records(checkpoint_path, shape, cfg.seed, id.index, v0, m, world) {
         envs = recs;
         tracing::info!(
             actor = id.index,
@@ -210,6 +194,8 @@ pub fn run_actor(
     let mut intrinsic = vec![0.0f32; n];
     let mut finals: Vec<(usize, Vec<u8>, Vec<u8>)> = Vec::new();
     let sub_batch = MAX_BATCH.min(n.div_ceil(MAX_IN_FLIGHT).max(m));
+    let (mut acts, mut lps, mut vals) = (vec![0u8; m], vec![0.0f32; m], vec![0.0f32; m]);
+    let mut last = vec![0.0f32; m];
     while !stop.load(Ordering::Relaxed) {
         let v = version;
         let mut rng = ChaCha8Rng::seed_from_u64(chunk_seed(cfg.seed, id.index, v, per_version));
@@ -247,20 +233,24 @@ pub fn run_actor(
                 let f_slot = fr.start + base * f..fr.start + (base + m) * f;
                 buf[g_slot.clone()].copy_from_slice(&cur_g);
                 buf[f_slot.clone()].copy_from_slice(&cur_f);
-                let obs = net.batch(&buf[g_slot], &buf[f_slot])?;
-                let (logits, value) = net.forward(&obs)?;
-                let (acts, lps) = sample(&logits, &mut rng)?;
-                let vals: Vec<f32> = value.to_vec1()?;
+                policy.act(
+                    &buf[g_slot],
+                    &buf[f_slot],
+                    &mut rng,
+                    &mut acts,
+                    &mut lps,
+                    &mut vals,
+                );
                 for e in 0..m {
                     let i = base + e;
                     let rec = &mut envs[e];
                     let prev = rec.episode.state;
-                    let out = world.env_step(&mut rec.episode, acts[e] as u8);
+                    let out = world.env_step(&mut rec.episode, acts[e]);
                     let next = rec.episode.state;
                     next_states.push(next);
                     rec.ext_return += out.reward;
                     rec.picked |= next.inventory != 0 && prev.inventory != next.inventory;
-                    buf[layout.range(Section::Actions).start + i] = acts[e] as u8;
+                    buf[layout.range(Section::Actions).start + i] = acts[e];
                     buf[layout.range(Section::Terminated).start + i] = out.terminated as u8;
                     buf[layout.range(Section::Truncated).start + i] = out.truncated as u8;
                     put_f32(&mut buf[layout.range(Section::Logprob)], i, lps[e]);
@@ -304,14 +294,15 @@ pub fn run_actor(
                 }
             }
             // Values after the chunk, and of truncated episodes' final observations.
-            let last: Vec<f32> = net.forward(&net.batch(&cur_g, &cur_f)?)?.1.to_vec1()?;
+            policy.values(&cur_g, &cur_f, &mut last);
             for (e, v) in last.iter().enumerate() {
                 put_f32(&mut buf[layout.range(Section::LastValue)], e, *v);
             }
             if !finals.is_empty() {
                 let fg: Vec<u8> = finals.iter().flat_map(|x| x.1.iter().copied()).collect();
                 let ff: Vec<u8> = finals.iter().flat_map(|x| x.2.iter().copied()).collect();
-                let fv: Vec<f32> = net.forward(&net.batch(&fg, &ff)?)?.1.to_vec1()?;
+                let mut fv = vec![0.0f32; finals.len()];
+                policy.values(&fg, &ff, &mut fv);
                 for ((i, _, _), v) in finals.iter().zip(fv) {
                     put_f32(&mut buf[layout.range(Section::TruncValue)], *i, v);
                 }
@@ -391,7 +382,7 @@ pub fn run_actor(
         per_version += 1;
         // Weights for the next chunk.
         let blocking = cfg.max_policy_lag == 0;
-        match take_weights(Some(version), blocking)? {
+        match wait.take(&mut policy, Some(version), blocking)? {
             Some(v) => {
                 version = v;
                 per_version = 0;
@@ -461,7 +452,8 @@ fn connect(
 /// The worlds of actor `index` from the checkpoint, if it was taken at `version`.
 fn resume_records(
     path: &Path,
-    net: &Net,
+    shape: fulcrum_learner::net::NetShape,
+    seed: u64,
     index: u32,
     version: u64,
     m: usize,
@@ -470,32 +462,71 @@ fn resume_records(
     if !path.exists() {
         return None;
     }
-    let flat = net.flat().ok()?;
-    let mut adam = Adam::new(net).ok()?;
-    let extra = checkpoint::load(path, net, &mut adam).ok();
-    let ok = extra
-        .as_ref()
-        .is_some_and(|x| x.counters.get("update") == Some(&version));
-    let recs = extra.and_then(|x| x.blobs.get(&format!("env/{index}")).cloned());
-    let recs: Option<Vec<EnvRecord>> = recs.and_then(|b| {
-        if b.len() != m * ENV_BYTES {
-            return None;
-        }
-        b.chunks_exact(ENV_BYTES)
-            .map(EnvRecord::from_bytes)
-            .collect()
-    });
-    // Never start from a record whose state is not the world's (another run's file).
-    let valid = recs.as_ref().is_some_and(|r| {
-        r.iter().all(|x| {
+    let net = Net::new(shape, seed, &Device::Cpu).ok()?;
+    let mut adam = Adam::new(&net).ok()?;
+    let extra = checkpoint::load(path, &net, &mut adam).ok()?;
+    if extra.counters.get("update") != Some(&version) {
+        return None;
+    }
+    let b = extra.blobs.get(&format!("env/{index}"))?;
+    if b.len() != m * ENV_BYTES {
+        return None;
+    }
+    let recs: Vec<EnvRecord> = b
+        .chunks_exact(ENV_BYTES)
+        .map(EnvRecord::from_bytes)
+        .collect::<Option<_>>()?;
+    // Never start from a record whose agent is off the map (another world's file).
+    recs.iter()
+        .all(|x| {
             (x.episode.state.x as usize) < world.width
                 && (x.episode.state.y as usize) < world.height
         })
-    });
-    if ok && valid {
-        recs
-    } else {
-        let _ = net.set_flat(&flat);
-        None
+        .then_some(recs)
+}
+
+/// Where new weights come from.
+struct WeightsIn<'a> {
+    sub: &'a traj::WeightsSubscriber,
+    listener: &'a iceoryx2::port::listener::Listener<ipc::Service>,
+    run: u64,
+    world_hash: u64,
+    stop: &'static AtomicBool,
+}
+
+impl WeightsIn<'_> {
+    /// Take the newest weights newer than `after` into `policy`; with `block`, wait for
+    /// them (until stopped). Returns their version.
+    fn take(
+        &self,
+        policy: &mut Policy,
+        after: Option<u64>,
+        block: bool,
+    ) -> Result<Option<u64>, ActorError> {
+        loop {
+            let mut newest: Option<u64> = None;
+            while let Some(s) = self.sub.receive().map_err(|e| ipc("receive weights")(&e))? {
+                let h = *s.user_header();
+                if h.run != self.run || h.world_hash != self.world_hash {
+                    tracing::warn!("ignored weights of another run");
+                    continue;
+                }
+                if after.is_some_and(|a| h.version <= a) || newest.is_some_and(|v| h.version < v) {
+                    continue;
+                }
+                if !policy.set(s.payload()) {
+                    tracing::warn!("ignored weights of another shape");
+                    continue;
+                }
+                newest = Some(h.version);
+            }
+            if newest.is_some() {
+                return Ok(newest);
+            }
+            if !block || self.stop.load(Ordering::Relaxed) {
+                return Ok(None);
+            }
+            let _ = self.listener.timed_wait(|_| {}, Duration::from_millis(50));
+        }
     }
 }

@@ -5,15 +5,16 @@
 //! This is the reference loop: the multi-process training distributes exactly these
 //! steps (actors collect, the learner runs [`update`]).
 
-use candle_core::{Device, Result, Tensor};
+use candle_core::{Device, Result};
 use fulcrum_shared::{Episode, World};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
 use crate::net::{sample, Net, NetShape};
-use crate::ppo::{clipped_grads, loss, Adam, Minibatch, PpoConfig, Stats};
+use crate::ppo::{Adam, PpoConfig, Stats};
 
 /// What to train.
 #[derive(Debug, Clone, Copy)]
@@ -250,6 +251,11 @@ pub struct UpdateData<'a> {
 }
 
 /// PPO epochs over shuffled minibatches; returns the mean diagnostics.
+///
+/// Same math as [`crate::ppo::loss`] + [`crate::ppo::clipped_grads`] + [`Adam::apply`]
+/// per minibatch (CleanRL's `ppo.py`), computed by [`crate::fused`] on flat buffers: the
+/// parameters and Adam's moments are copied out of `net` and `adam` once and written back
+/// at the end.
 pub fn update(
     net: &Net,
     adam: &mut Adam,
@@ -259,53 +265,26 @@ pub fn update(
     d: &UpdateData,
 ) -> Result<Stats> {
     let n = d.actions.len();
-    let (c, f) = (net.shape.cells, net.shape.flags);
+    let data = Data::new(
+        net.shape,
+        d.glyphs,
+        d.flags,
+        d.actions,
+        d.logprobs,
+        d.values,
+        d.advantages,
+        d.returns,
+    )?;
+    let mut fl = Learner::load(net, adam)?;
     let mb = n / cfg.minibatches.max(1);
     let mut idx: Vec<usize> = (0..n).collect();
     let mut sum = Stats::default();
     let mut count = 0;
-    let dev = net.device().clone();
     for _ in 0..cfg.epochs {
         idx.shuffle(rng);
         for chunk in idx.chunks(mb.max(1)) {
-            let g: Vec<u8> = chunk
-                .iter()
-                .flat_map(|&i| d.glyphs[i * c..(i + 1) * c].iter().copied())
-                .collect();
-            let fl: Vec<u8> = chunk
-                .iter()
-                .flat_map(|&i| d.flags[i * f..(i + 1) * f].iter().copied())
-                .collect();
-            let pick_f = |v: &[f32]| {
-                Tensor::from_vec(
-                    chunk.iter().map(|&i| v[i]).collect::<Vec<f32>>(),
-                    chunk.len(),
-                    &dev,
-                )
-            };
-            let obs = net.batch(&g, &fl)?;
-            let actions = Tensor::from_vec(
-                chunk.iter().map(|&i| d.actions[i]).collect::<Vec<u32>>(),
-                chunk.len(),
-                &dev,
-            )?;
-            let (old_lp, adv, ret, old_v) = (
-                pick_f(d.logprobs)?,
-                pick_f(d.advantages)?,
-                pick_f(d.returns)?,
-                pick_f(d.values)?,
-            );
-            let batch = Minibatch {
-                obs: &obs,
-                actions: &actions,
-                old_logprob: &old_lp,
-                advantages: &adv,
-                returns: &ret,
-                old_values: &old_v,
-            };
-            let (l, s) = loss(net, &batch, cfg)?;
-            let (grads, _) = clipped_grads(net, &l, cfg.max_grad_norm)?;
-            adam.apply(net, &grads, lr)?;
+            let s = fl.gradient(&data, chunk, cfg);
+            fl.clip_and_step(cfg.max_grad_norm, lr);
             sum.policy_loss += s.policy_loss;
             sum.value_loss += s.value_loss;
             sum.entropy += s.entropy;
@@ -314,6 +293,7 @@ pub fn update(
             count += 1;
         }
     }
+    fl.store(net, adam)?;
     let k = count.max(1) as f32;
     Ok(Stats {
         policy_loss: sum.policy_loss / k,

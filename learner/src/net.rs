@@ -16,7 +16,7 @@
 //! so checkpoints stay readable. Initial weights come from our own seeded generator
 //! (candle's CPU generator cannot be seeded).
 
-use candle_core::{DType, Device, Result, Tensor, Var, D};
+use candle_core::{DType, Device, Result, Storage, Tensor, Var, D};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -168,9 +168,9 @@ impl Net {
 
     /// All parameters as one flat f32 buffer (the weights actors receive).
     pub fn flat(&self) -> Result<Vec<f32>> {
-        let mut out = Vec::new();
+        let mut out = Vec::with_capacity(self.len());
         for (_, v) in &self.params {
-            out.extend(v.as_tensor().flatten_all()?.to_vec1::<f32>()?);
+            append_f32(&mut out, v.as_tensor())?;
         }
         Ok(out)
     }
@@ -216,6 +216,20 @@ impl Net {
     pub fn device(&self) -> &Device {
         &self.device
     }
+}
+
+/// Append an f32 tensor's elements (row-major) to `out`: straight from the storage when
+/// it is a contiguous CPU tensor (no intermediate vector), else through `to_vec1`.
+pub fn append_f32(out: &mut Vec<f32>, t: &Tensor) -> Result<()> {
+    if t.dtype() == DType::F32 {
+        let (storage, layout) = t.storage_and_layout();
+        if let (Storage::Cpu(cpu), Some((a, b))) = (&*storage, layout.contiguous_offsets()) {
+            out.extend_from_slice(&cpu.as_slice::<f32>()?[a..b]);
+            return Ok(());
+        }
+    }
+    out.extend(t.flatten_all()?.to_dtype(DType::F32)?.to_vec1::<f32>()?);
+    Ok(())
 }
 
 /// log softmax over the last dimension.

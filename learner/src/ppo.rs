@@ -16,6 +16,7 @@
 
 use candle_core::{Result, Tensor};
 
+use crate::fused::{adam_slices, AdamStep};
 use crate::net::{logprob_entropy, Net, ObsBatch};
 
 /// PPO hyperparameters (CleanRL's defaults).
@@ -88,20 +89,38 @@ impl Adam {
     }
 
     /// One step with gradients `grads` (same order as the parameters).
+    ///
+    /// The arithmetic of candle's ops `m * b1 + g * (1 - b1)`, `v * b2 + g^2 * (1 - b2)`,
+    /// `w - (m / c1) / (sqrt(v / c2) + eps) * lr`, as one loop per parameter
+    /// ([`crate::fused::adam_slices`]: subnormal moments become 0, the weights unchanged).
     pub fn apply(&mut self, net: &Net, grads: &[Tensor], lr: f64) -> Result<()> {
-        const B1: f64 = 0.9;
-        const B2: f64 = 0.999;
-        const EPS: f64 = 1e-5;
+        if grads.len() != net.params.len() || self.m.len() != net.params.len() {
+            candle_core::bail!(
+                "Adam: {} parameters, {} gradients, {} moments",
+                net.params.len(),
+                grads.len(),
+                self.m.len()
+            );
+        }
         self.step += 1;
-        let t = self.step as i32;
-        let (c1, c2) = (1.0 - B1.powi(t), 1.0 - B2.powi(t));
+        let k = AdamStep::new(self.step, lr);
         for (i, ((_, var), g)) in net.params.iter().zip(grads).enumerate() {
-            self.m[i] = ((&self.m[i] * B1)? + (g * (1.0 - B1))?)?;
-            self.v[i] = ((&self.v[i] * B2)? + (g.sqr()? * (1.0 - B2))?)?;
-            let mhat = (&self.m[i] / c1)?;
-            let denom = ((&self.v[i] / c2)?.sqrt()? + EPS)?;
-            let upd = ((mhat / denom)? * lr)?;
-            var.set(&(var.as_tensor() - upd)?)?;
+            let t = var.as_tensor();
+            let (dims, dev) = (t.dims().to_vec(), t.device().clone());
+            let vec = |t: &Tensor| t.flatten_all()?.to_vec1::<f32>();
+            let (mut w, g) = (vec(t)?, vec(g)?);
+            let (mut m, mut v) = (vec(&self.m[i])?, vec(&self.v[i])?);
+            if g.len() != w.len() || m.len() != w.len() || v.len() != w.len() {
+                candle_core::bail!(
+                    "Adam: parameter {i} has {} floats, its gradient {}",
+                    w.len(),
+                    g.len()
+                );
+            }
+            adam_slices(&mut w, &g, &mut m, &mut v, k, None);
+            self.m[i] = Tensor::from_vec(m, dims.as_slice(), &dev)?;
+            self.v[i] = Tensor::from_vec(v, dims.as_slice(), &dev)?;
+            var.set(&Tensor::from_vec(w, dims.as_slice(), &dev)?)?;
         }
         Ok(())
     }

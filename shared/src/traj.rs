@@ -445,6 +445,53 @@ mod tests {
         assert_eq!(l.range(Section::LastValue), 648..660);
     }
 
+    fn valid_chunk(l: &ChunkLayout) -> (ChunkHeader, Vec<u8>) {
+        let h = ChunkHeader {
+            envs: l.envs as u32,
+            steps: l.steps as u32,
+            cells: l.cells as u32,
+            flags: l.flags as u32,
+            actions: 5,
+            len: l.bytes() as u64,
+            episodes: 2,
+            successes: 1,
+            ..ChunkHeader::default()
+        };
+        (h, vec![0u8; l.bytes()])
+    }
+
+    #[test]
+    fn validate_refuses_each_kind_of_bad_chunk() {
+        let l = ChunkLayout {
+            envs: 2,
+            steps: 3,
+            cells: 4,
+            flags: 2,
+        };
+        let (h, p) = valid_chunk(&l);
+        assert_eq!(l.validate(&h, 5, &p), Ok(()));
+        // Shape, length, action range, done flags, numbers, statistics.
+        let mut hh = h;
+        hh.envs = 3;
+        assert!(l.validate(&hh, 5, &p).is_err());
+        assert!(l.validate(&h, 5, &p[1..]).is_err());
+        assert!(l.validate(&h, 4, &p).is_err());
+        let mut q = p.clone();
+        q[l.range(Section::Actions).start + 5] = 5;
+        assert_eq!(l.validate(&h, 5, &q), Err("action out of range"));
+        let mut q = p.clone();
+        q[l.range(Section::Truncated).start] = 2;
+        assert_eq!(l.validate(&h, 5, &q), Err("done flag not 0 or 1"));
+        for s in [Section::Logprob, Section::LastValue] {
+            let mut q = p.clone();
+            put_f32(&mut q[l.range(s)], 1, f32::NAN);
+            assert_eq!(l.validate(&h, 5, &q), Err("a number is not finite"));
+        }
+        let mut hh = h;
+        hh.successes = 3;
+        assert!(l.validate(&hh, 5, &p).is_err());
+    }
+
     #[test]
     fn env_record_round_trips() {
         let mut st = State::default();
