@@ -7,8 +7,8 @@
 //! - `flags: [u8; 2n + 2]`: held tool k at `k`, then mode one-hot: normal at `n`,
 //!   choosing-tool at `n + 1`, choosing-direction(k) at `n + 2 + k`.
 
-use crate::state::{Mode, State, BOULDER_DESTROYED};
-use crate::world::{ObjectKind, Task, Terrain, World, DESTROYED, INTACT, OPEN};
+use crate::state::{State, BOULDER_DESTROYED};
+use crate::world::{ObjectKind, Task, Terrain, World, DESTROYED, INTACT, MAX_OBJECTS, OPEN};
 
 /// Glyph id of rock.
 pub const G_ROCK: u8 = 0;
@@ -129,7 +129,17 @@ impl World {
         if s.y as usize * self.width + s.x as usize == c {
             return G_AGENT;
         }
-        if self.boulder_indices().any(|b| s.objects[b] == c as u16) {
+        self.glyph_under_agent(s, c)
+    }
+
+    /// [`World::cell_glyph`] of a cell the agent does not stand on.
+    #[inline]
+    fn glyph_under_agent(&self, s: &State, c: usize) -> u8 {
+        if self
+            .boulders
+            .iter()
+            .any(|&b| s.objects[b as usize] == c as u16)
+        {
             return G_BOULDER;
         }
         if let t @ 1.. = self.tool_at[c] {
@@ -157,15 +167,47 @@ impl World {
 
     /// Bring an observation of `prev` up to date for `next`, rewriting only the cells a
     /// step can change (the agent's, the boulders', changed objects' and picked-up
-    /// tools' cells) and the flags. Equal to [`World::observe`] of `next` for any two
-    /// states, episode resets included (tested), at a fraction of the cost: a step
-    /// changes a few cells of the grid.
+    /// tools' cells) and the flags that changed (held tools, the mode one-hot).
+    /// `glyphs` and `flags` must hold the observation of `prev` (as from
+    /// [`World::observe`] or an earlier update); they then equal [`World::observe`] of
+    /// `next`, for any two states, episode resets included (tested), at a fraction of
+    /// the cost: a step changes a few cells of the grid and at most a few flags.
     pub fn observe_update(&self, prev: &State, next: &State, glyphs: &mut [u8], flags: &mut [u8]) {
         let w = self.width;
-        let mut touch = |c: usize| glyphs[c] = self.cell_glyph(next, c);
-        touch(prev.y as usize * w + prev.x as usize);
-        touch(next.y as usize * w + next.x as usize);
-        for (i, o) in self.objects.iter().enumerate() {
+        let from = prev.y as usize * w + prev.x as usize;
+        let agent = next.y as usize * w + next.x as usize;
+        if from != agent {
+            glyphs[from] = self.glyph_under_agent(next, from);
+        }
+        glyphs[agent] = G_AGENT;
+        if prev.objects != next.objects {
+            self.update_objects(prev, next, glyphs, agent);
+        }
+        if prev.inventory != next.inventory {
+            self.update_inventory(prev, next, glyphs, flags, agent);
+        }
+        if prev.mode != next.mode {
+            // The mode one-hot sits at n + the mode byte (0 normal, 1 choosing-tool,
+            // 2 + k choosing-direction(k)).
+            let n = self.tools.len();
+            flags[n + prev.mode as usize] = 0;
+            flags[n + next.mode as usize] = 1;
+        }
+    }
+
+    /// The cells of objects whose slot changed between `prev` and `next`.
+    #[cold]
+    #[inline(never)]
+    fn update_objects(&self, prev: &State, next: &State, glyphs: &mut [u8], agent: usize) {
+        let w = self.width;
+        let mut touch = |c: usize| {
+            glyphs[c] = if c == agent {
+                G_AGENT
+            } else {
+                self.glyph_under_agent(next, c)
+            }
+        };
+        for (i, o) in self.objects.iter().enumerate().take(MAX_OBJECTS) {
             let (a, b) = (prev.objects[i], next.objects[i]);
             if a == b {
                 continue;
@@ -180,13 +222,34 @@ impl World {
                 touch(o.pos.1 as usize * w + o.pos.0 as usize);
             }
         }
-        let changed = prev.inventory ^ next.inventory;
-        for (k, t) in self.tools.iter().enumerate() {
-            if changed >> k & 1 == 1 {
-                touch(t.pos.1 as usize * w + t.pos.0 as usize);
+    }
+
+    /// The start cells and held flags of tools picked up (or dropped, across a reset).
+    #[cold]
+    #[inline(never)]
+    fn update_inventory(
+        &self,
+        prev: &State,
+        next: &State,
+        glyphs: &mut [u8],
+        flags: &mut [u8],
+        agent: usize,
+    ) {
+        let w = self.width;
+        let mut changed = prev.inventory ^ next.inventory;
+        while changed != 0 {
+            let k = changed.trailing_zeros() as usize;
+            changed &= changed - 1;
+            if let Some(t) = self.tools.get(k) {
+                let c = t.pos.1 as usize * w + t.pos.0 as usize;
+                glyphs[c] = if c == agent {
+                    G_AGENT
+                } else {
+                    self.glyph_under_agent(next, c)
+                };
+                flags[k] = next.holds(k) as u8;
             }
         }
-        self.observe_flags(next, flags);
     }
 
     fn observe_flags(&self, s: &State, flags: &mut [u8]) {
@@ -195,12 +258,9 @@ impl World {
         for (k, f) in flags.iter_mut().enumerate().take(n) {
             *f = s.holds(k) as u8;
         }
-        let m = match s.mode() {
-            Mode::Normal => n,
-            Mode::ChoosingTool => n + 1,
-            Mode::ChoosingDirection(k) => n + 2 + k as usize,
-        };
-        flags[m] = 1;
+        // The mode one-hot: normal at n, choosing-tool at n + 1, choosing-direction(k)
+        // at n + 2 + k, i.e. at n + the mode byte.
+        flags[n + s.mode as usize] = 1;
     }
 
     /// A fresh episode at the initial state.
@@ -214,11 +274,11 @@ impl World {
 
     /// Take action `a` in the episode: the state moves, the task pays, the episode may
     /// end. The caller resets after `terminated || truncated`.
+    #[inline]
     pub fn env_step(&self, ep: &mut Episode, a: u8) -> Outcome {
-        let next = self.step(&ep.state, a);
-        ep.state = next;
+        self.step_inline(&mut ep.state, a);
         ep.t += 1;
-        let (reward, terminated) = self.task_reward(&next, &mut ep.rewarded);
+        let (reward, terminated) = self.task_reward(&ep.state, &mut ep.rewarded);
         Outcome {
             reward,
             terminated,
@@ -228,18 +288,24 @@ impl World {
 
     /// The task's reward for arriving in `s`, and whether `s` is terminal. `rewarded`
     /// remembers which objects have already paid in this episode.
+    #[inline]
     pub fn task_reward(&self, s: &State, rewarded: &mut u16) -> (f32, bool) {
         match &self.task {
             Task::None => (0.0, false),
             Task::Destroy(list) => {
                 let mut r = 0.0;
+                let mut done = true;
                 for &i in list {
-                    if self.cond(s, i) == DESTROYED && *rewarded >> i & 1 == 0 {
-                        *rewarded |= 1 << i;
-                        r += 1.0;
+                    let bit = 1u16 << i;
+                    if *rewarded & bit == 0 {
+                        if self.cond(s, i) == DESTROYED {
+                            *rewarded |= bit;
+                            r += 1.0;
+                        } else {
+                            done = false;
+                        }
                     }
                 }
-                let done = list.iter().all(|&i| *rewarded >> i & 1 == 1);
                 (r, done)
             }
             Task::Push(b) => {

@@ -494,10 +494,12 @@ mod tests {
 
     #[test]
     fn env_record_round_trips() {
-        let mut st = State::default();
-        st.x = 3;
-        st.y = 2;
-        st.inventory = 5;
+        let st = State {
+            x: 3,
+            y: 2,
+            inventory: 5,
+            ..State::default()
+        };
         let r = EnvRecord {
             episode: Episode {
                 state: st,

@@ -426,35 +426,49 @@ impl World {
     }
 
     /// T(s, a): the next state. Deterministic; actions out of range act as "stay".
+    #[inline]
     pub fn step(&self, s: &State, a: u8) -> State {
         let mut n = *s;
-        match s.mode() {
-            Mode::Normal => {
+        self.step_in_place(&mut n, a);
+        n
+    }
+
+    /// T(s, a) in place: `n` becomes the next state (same result as [`World::step`],
+    /// without copying the state in and out).
+    pub fn step_in_place(&self, n: &mut State, a: u8) {
+        self.step_inline(n, a);
+    }
+
+    /// The body of [`World::step_in_place`], inlined into [`World::env_step`].
+    #[inline(always)]
+    pub(crate) fn step_inline(&self, n: &mut State, a: u8) {
+        match n.mode {
+            0 => {
                 if a < 4 {
-                    self.walk(&mut n, a);
-                } else if a == APPLY && s.inventory != 0 {
+                    self.walk(n, a);
+                } else if a == APPLY && n.inventory != 0 {
                     n.set_mode(Mode::ChoosingTool);
                 }
             }
-            Mode::ChoosingTool => {
+            1 => {
                 let k = a.wrapping_sub(SELECT0) as usize;
-                if a >= SELECT0 && k < self.tools.len() && s.holds(k) {
+                if a >= SELECT0 && k < self.tools.len() && n.holds(k) {
                     n.set_mode(Mode::ChoosingDirection(k as u8));
                 } else {
                     n.set_mode(Mode::Normal);
                 }
             }
-            Mode::ChoosingDirection(k) => {
+            m => {
                 n.set_mode(Mode::Normal);
                 if a < 4 {
-                    self.use_tool(&mut n, k as usize, a);
+                    self.use_tool(n, (m - 2) as usize, a);
                 }
             }
         }
-        n
     }
 
     /// Move one cell in direction `d`, pushing a boulder and picking up a tool.
+    #[inline]
     fn walk(&self, n: &mut State, d: u8) {
         let (dx, dy) = DIRS[d as usize];
         let (tx, ty) = (n.x as i32 + dx, n.y as i32 + dy);
@@ -477,8 +491,8 @@ impl World {
         }
         n.x = tx as u8;
         n.y = ty as u8;
-        if let Some(k) = self.tool_cell(tx as usize, ty as usize) {
-            n.inventory |= 1 << k;
+        if let k @ 1.. = self.tool_at[t] {
+            n.inventory |= 1 << (k - 1);
         }
     }
 

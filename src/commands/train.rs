@@ -286,7 +286,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
     cfg.check().map_err(super::BadInput)?;
     if cfg.empowerment {
         // Tool and objects are resolved (and refused) here, before any process starts.
-        let set = super::objects_or_default(
+        super::objects_or_default(
             &w,
             (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
         )?;
@@ -299,7 +299,6 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
                 ));
             }
         }
-        let _ = set;
     }
     let dir = a
         .out
