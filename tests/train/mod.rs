@@ -510,3 +510,34 @@ fn asynchronous_actors_record_their_policy_lag() {
     assert!(rows.iter().any(|r| r.policy_lag > 0.0), "no lag recorded");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// PPO through the whole system (actors, service, learner, shared memory) solves the
+/// room within 200k env steps, with and without empowerment (bounded by steps, not
+/// time; fixed seed and settings).
+#[test]
+fn the_whole_system_learns_the_room() {
+    for arm in [&[][..], &["--no-empowerment"][..]] {
+        let dir = run_dir("learn");
+        let d = dir.to_str().unwrap();
+        let args = [
+            &[
+                "room", "--actors", "1", "--steps", "200000", "--seed", "1", "--out", d,
+            ][..],
+            arm,
+        ]
+        .concat();
+        let (s, err, _) = finish(train(&args), Duration::from_secs(300));
+        assert!(s.success(), "{err}");
+        let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+        // The last 10 updates (about 170 episodes): success rate >= 0.9.
+        let tail = &rows[rows.len() - 10..];
+        let (eps, succ) = tail.iter().fold((0.0, 0.0), |(e, s), r| {
+            (
+                e + r.episodes as f64,
+                s + r.success_rate * r.episodes as f64,
+            )
+        });
+        assert!(succ / eps >= 0.9, "{arm:?}: success {}", succ / eps);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
