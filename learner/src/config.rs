@@ -55,24 +55,8 @@ pub struct RunConfig {
     pub max_policy_lag: u64,
     /// Checkpoint every this many updates (and at the end).
     pub checkpoint_every: u64,
-    /// Discount.
-    pub gamma: f32,
-    /// GAE lambda.
-    pub gae_lambda: f32,
-    /// PPO clip range.
-    pub clip: f32,
-    /// Entropy coefficient.
-    pub ent_coef: f32,
-    /// Value-loss coefficient.
-    pub vf_coef: f32,
-    /// Epochs per update.
-    pub epochs: usize,
-    /// Minibatches per epoch.
-    pub minibatches: usize,
-    /// Global gradient-norm limit.
-    pub max_grad_norm: f32,
-    /// Adam learning rate at the start (annealed linearly to 0).
-    pub lr: f64,
+    /// PPO hyperparameters (the `[ppo]` table).
+    pub ppo: PpoConfig,
 }
 
 impl RunConfig {
@@ -84,21 +68,6 @@ impl RunConfig {
     /// Updates in the run.
     pub fn updates(&self) -> u64 {
         self.total_steps.div_ceil(self.batch().max(1) as u64).max(1)
-    }
-
-    /// The PPO hyperparameters.
-    pub fn ppo(&self) -> PpoConfig {
-        PpoConfig {
-            gamma: self.gamma,
-            gae_lambda: self.gae_lambda,
-            clip: self.clip,
-            ent_coef: self.ent_coef,
-            vf_coef: self.vf_coef,
-            epochs: self.epochs,
-            minibatches: self.minibatches,
-            max_grad_norm: self.max_grad_norm,
-            lr: self.lr,
-        }
     }
 
     /// The first thing wrong with the configuration, as one sentence.
@@ -139,20 +108,20 @@ impl RunConfig {
             ),
             (self.total_steps == 0, "--steps must be at least 1".into()),
             (
-                self.minibatches == 0 || self.minibatches > b,
+                self.ppo.minibatches == 0 || self.ppo.minibatches > b,
                 format!(
                     "{} minibatches do not fit a batch of {b} steps",
-                    self.minibatches
+                    self.ppo.minibatches
                 ),
             ),
-            (self.epochs == 0, "epochs must be at least 1".into()),
+            (self.ppo.epochs == 0, "epochs must be at least 1".into()),
             (
                 self.checkpoint_every == 0,
                 "--checkpoint-every must be at least 1".into(),
             ),
             (
-                !(self.lr.is_finite() && self.lr > 0.0),
-                format!("learning rate {} must be positive", self.lr),
+                !(self.ppo.lr.is_finite() && self.ppo.lr > 0.0),
+                format!("learning rate {} must be positive", self.ppo.lr),
             ),
         ];
         for (bad, why) in checks {
@@ -219,15 +188,7 @@ mod tests {
             horizon_equipped: 1,
             max_policy_lag: 0,
             checkpoint_every: 10,
-            gamma: 0.99,
-            gae_lambda: 0.95,
-            clip: 0.2,
-            ent_coef: 0.01,
-            vf_coef: 0.5,
-            epochs: 4,
-            minibatches: 4,
-            max_grad_norm: 0.5,
-            lr: 2.5e-4,
+            ppo: PpoConfig::default(),
         }
     }
 

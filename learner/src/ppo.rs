@@ -20,7 +20,8 @@ use crate::fused::{adam_slices, AdamStep};
 use crate::net::{logprob_entropy, Net, ObsBatch};
 
 /// PPO hyperparameters (CleanRL's defaults).
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct PpoConfig {
     /// Discount.
     pub gamma: f32,

@@ -348,7 +348,7 @@ pub fn run_learner(
     let mut metrics = open_metrics(&paths.metrics())?;
     let mut restarts: BTreeMap<u32, u32> = BTreeMap::new();
     let mut pending: Vec<Chunk> = Vec::new();
-    let ppo = cfg.ppo();
+    let ppo = cfg.ppo;
     let started = Instant::now();
     let wall0 = ctr.wall_s;
     let mut last = Instant::now();

@@ -23,6 +23,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use fulcrum_learner::config::RunConfig;
+use fulcrum_learner::ppo::PpoConfig;
 use fulcrum_learner::run::{read_metrics, run_learner, LearnerExit, RunPaths};
 use fulcrum_shared::World;
 
@@ -82,8 +83,7 @@ fn cores() -> usize {
 
 /// `fulcrum train`.
 pub fn run(a: &TrainArgs) -> Result<()> {
-    let (cfg, paths, resumed) = resolve(a)?;
-    let w = load_run_world(&cfg)?;
+    let (cfg, w, paths, resumed) = resolve(a)?;
     install_signal_handlers();
     let ns = format!(
         "t{:x}{:x}",
@@ -156,8 +156,8 @@ pub fn run(a: &TrainArgs) -> Result<()> {
     }
 }
 
-/// The resolved configuration, the run's paths, and whether it is a resume.
-fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
+/// The resolved configuration, its world, the run's paths, and whether it is a resume.
+fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
     if let Some(dir) = &a.resume {
         let paths = RunPaths { dir: dir.clone() };
         if !paths.config().exists() {
@@ -215,7 +215,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
             cfg.learner_threads = t;
         }
         cfg.check().map_err(super::BadInput)?;
-        let w = load_run_world(&cfg)?;
+        let w = world(&cfg.world)?;
         if format!("{:016x}", w.content_hash()) != cfg.world_hash {
             return bad(format!(
                 "--resume {}: the world '{}' has changed since the run started (hash {:016x}, the run has {})",
@@ -226,7 +226,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
             ));
         }
         write_config(&paths, &cfg)?;
-        return Ok((cfg, paths, true));
+        return Ok((cfg, w, paths, true));
     }
     let spec = a.world.clone().unwrap_or_default();
     let w = world(&spec)?;
@@ -270,15 +270,15 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
         horizon_equipped: a.horizon_equipped.unwrap_or(e.horizon_equipped),
         max_policy_lag: a.max_policy_lag.unwrap_or(0),
         checkpoint_every: a.checkpoint_every.unwrap_or(10),
-        gamma: 0.99,
-        gae_lambda: 0.95,
-        clip: 0.2,
-        ent_coef: 0.01,
-        vf_coef: 0.5,
-        epochs: a.epochs.unwrap_or(4),
-        minibatches: a.minibatches.unwrap_or(4),
-        max_grad_norm: 0.5,
-        lr: a.lr.unwrap_or(2.5e-4),
+        ppo: {
+            let d = PpoConfig::default();
+            PpoConfig {
+                epochs: a.epochs.unwrap_or(d.epochs),
+                minibatches: a.minibatches.unwrap_or(d.minibatches),
+                lr: a.lr.unwrap_or(d.lr),
+                ..d
+            }
+        },
     };
     if a.no_empowerment && a.beta.is_some() {
         return bad("--beta and --no-empowerment contradict each other: choose one");
@@ -315,7 +315,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, RunPaths, bool)> {
     std::fs::create_dir_all(paths.plots())
         .with_context(|| format!("cannot create {}", dir.display()))?;
     write_config(&paths, &cfg)?;
-    Ok((cfg, paths, false))
+    Ok((cfg, w, paths, false))
 }
 
 fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
@@ -351,10 +351,6 @@ fn chrono_like_now() -> String {
         rem / 60 % 60,
         rem % 60
     )
-}
-
-fn load_run_world(cfg: &RunConfig) -> Result<World> {
-    world(&cfg.world)
 }
 
 enum Outcome {
@@ -741,7 +737,7 @@ fn child_setup(a: &ChildArgs) -> Result<(RunConfig, World, RunPaths)> {
     install_signal_handlers();
     let paths = RunPaths { dir: a.run.clone() };
     let cfg = RunConfig::load(&paths.config()).map_err(super::BadInput)?;
-    let w = load_run_world(&cfg)?;
+    let w = world(&cfg.world)?;
     if format!("{:016x}", w.content_hash()) != cfg.world_hash {
         return bad(format!(
             "the world '{}' differs from the run's (hash {})",
