@@ -21,5 +21,7 @@ pub mod net;
 pub mod ppo;
 /// The learner process of `fulcrum train`.
 pub mod run;
+/// Aggregating the learning curves of several runs (means, bands, Welch's t-test).
+pub mod stats;
 
 pub use gae::{gae, Rollout};

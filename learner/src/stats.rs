@@ -1,0 +1,278 @@
+//! Aggregating the learning curves of several runs: what `fulcrum experiment` reports.
+//!
+//! Each run's `metrics.csv` gives one row per PPO update i: env steps x_i, episodes
+//! finished in that update n_i, their success rate s_i and mean extrinsic return r_i
+//! (NaN when n_i = 0).
+//!
+//! * **Smoothing** ([`smooth`]): the rate at update i is pooled over the episodes of the
+//!   last `w` updates, s~_i = (sum_j s_j n_j) / (sum_j n_j) for j in (i - w, i], NaN
+//!   when those updates finished no episode. Pooling weights each episode once, so an
+//!   update with one lucky episode does not count as much as one with fifty.
+//! * **Common grid** ([`interpolate`]): seeds are compared at the same env steps
+//!   g_k = k * S / K, k = 0..=K. Between two finite points the curve is linear; before
+//!   the first finite point it holds the first value and after the last it holds the
+//!   last (a run is never extrapolated by a slope).
+//! * **Mean and band** ([`mean_std`]): at each g_k, the mean over seeds and the sample
+//!   standard deviation (divisor n - 1; 0 for one seed).
+//! * **Steps to threshold** ([`steps_to`]): the env steps x_i of the first update whose
+//!   smoothed rate reaches the threshold, or `None` when no update does.
+//! * **Area under the curve** ([`area`]): the trapezoid integral of the grid curve over
+//!   [g_0, g_K], divided by the span: the mean success rate over training, in [0, 1].
+//! * **Welch's t-test** ([`welch`]): for two samples a, b of sizes n_a, n_b >= 2 with
+//!   sample variances v_a, v_b, t = (mean_a - mean_b) / sqrt(v_a/n_a + v_b/n_b) with
+//!   Welch-Satterthwaite degrees of freedom
+//!   df = (v_a/n_a + v_b/n_b)^2 / ((v_a/n_a)^2/(n_a-1) + (v_b/n_b)^2/(n_b-1)),
+//!   and the two-sided p-value P(|T_df| >= |t|) = I_{df/(df+t^2)}(df/2, 1/2), the
+//!   regularised incomplete beta function ([`incomplete_beta`]).
+
+/// One update of one run, as read from `metrics.csv`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Point {
+    /// Env steps after the update.
+    pub steps: f64,
+    /// Episodes finished in the update.
+    pub episodes: f64,
+    /// Their success rate (NaN when none finished).
+    pub success: f64,
+    /// Their mean extrinsic return (NaN when none finished).
+    pub ret: f64,
+}
+
+/// Episode-pooled success rate and mean return over a trailing window of `w` updates
+/// (w >= 1; `w = 1` is the raw series). Returns `(steps, success, return)` per update.
+pub fn smooth(points: &[Point], w: usize) -> Vec<(f64, f64, f64)> {
+    let w = w.max(1);
+    (0..points.len())
+        .map(|i| {
+            let lo = (i + 1).saturating_sub(w);
+            let (mut n, mut s, mut r) = (0.0, 0.0, 0.0);
+            for p in &points[lo..=i] {
+                if p.episodes > 0.0 && p.success.is_finite() && p.ret.is_finite() {
+                    n += p.episodes;
+                    s += p.success * p.episodes;
+                    r += p.ret * p.episodes;
+                }
+            }
+            if n > 0.0 {
+                (points[i].steps, s / n, r / n)
+            } else {
+                (points[i].steps, f64::NAN, f64::NAN)
+            }
+        })
+        .collect()
+}
+
+/// The grid 0, S/K, ..., S (K + 1 points; K >= 1).
+pub fn grid(span: f64, k: usize) -> Vec<f64> {
+    let k = k.max(1);
+    (0..=k).map(|i| span * i as f64 / k as f64).collect()
+}
+
+/// Linear interpolation of the finite points of `(x, y)` (x ascending) at each grid
+/// point; the first and last finite values are held outside their range. All NaN when
+/// there is no finite point.
+pub fn interpolate(xy: &[(f64, f64)], grid: &[f64]) -> Vec<f64> {
+    let pts: Vec<(f64, f64)> = xy
+        .iter()
+        .copied()
+        .filter(|(x, y)| x.is_finite() && y.is_finite())
+        .collect();
+    if pts.is_empty() {
+        return vec![f64::NAN; grid.len()];
+    }
+    let mut j = 0;
+    grid.iter()
+        .map(|&g| {
+            if g <= pts[0].0 {
+                return pts[0].1;
+            }
+            if g >= pts[pts.len() - 1].0 {
+                return pts[pts.len() - 1].1;
+            }
+            while pts[j + 1].0 < g {
+                j += 1;
+            }
+            let ((x0, y0), (x1, y1)) = (pts[j], pts[j + 1]);
+            if x1 > x0 {
+                y0 + (y1 - y0) * (g - x0) / (x1 - x0)
+            } else {
+                y1
+            }
+        })
+        .collect()
+}
+
+/// Mean and sample standard deviation (divisor n - 1; 0 when n = 1) of finite values;
+/// `(NaN, NaN)` when there are none.
+pub fn mean_std(xs: &[f64]) -> (f64, f64) {
+    let v: Vec<f64> = xs.iter().copied().filter(|x| x.is_finite()).collect();
+    let n = v.len() as f64;
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN);
+    }
+    let m = v.iter().sum::<f64>() / n;
+    if v.len() == 1 {
+        return (m, 0.0);
+    }
+    let ss: f64 = v.iter().map(|x| (x - m) * (x - m)).sum();
+    (m, (ss / (n - 1.0)).sqrt())
+}
+
+/// Per grid point, the mean and sample standard deviation over curves (all the same
+/// length).
+pub fn band(curves: &[Vec<f64>]) -> Vec<(f64, f64)> {
+    let len = curves.iter().map(Vec::len).min().unwrap_or(0);
+    (0..len)
+        .map(|k| mean_std(&curves.iter().map(|c| c[k]).collect::<Vec<_>>()))
+        .collect()
+}
+
+/// Env steps of the first point whose rate reaches `threshold`, if any.
+pub fn steps_to(smoothed: &[(f64, f64, f64)], threshold: f64) -> Option<f64> {
+    smoothed
+        .iter()
+        .find(|(_, s, _)| s.is_finite() && *s >= threshold)
+        .map(|(x, _, _)| *x)
+}
+
+/// Trapezoid integral of `ys` over `xs` divided by the span (the curve's mean height).
+/// NaN values count as 0. NaN when the span is not positive.
+pub fn area(xs: &[f64], ys: &[f64]) -> f64 {
+    let n = xs.len().min(ys.len());
+    if n < 2 || xs[n - 1] <= xs[0] {
+        return f64::NAN;
+    }
+    let y = |i: usize| if ys[i].is_finite() { ys[i] } else { 0.0 };
+    let s: f64 = (1..n)
+        .map(|i| (xs[i] - xs[i - 1]) * (y(i) + y(i - 1)) / 2.0)
+        .sum();
+    s / (xs[n - 1] - xs[0])
+}
+
+/// Episode-pooled success rate and mean return over the last `frac` of the updates
+/// (at least one update).
+pub fn final_rates(points: &[Point], frac: f64) -> (f64, f64) {
+    let k = ((points.len() as f64 * frac).ceil() as usize).clamp(1, points.len().max(1));
+    let tail = &points[points.len().saturating_sub(k)..];
+    smooth(tail, tail.len())
+        .last()
+        .map(|&(_, s, r)| (s, r))
+        .unwrap_or((f64::NAN, f64::NAN))
+}
+
+/// The result of Welch's unequal-variance t-test.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Welch {
+    /// t statistic (mean of a minus mean of b over the standard error).
+    pub t: f64,
+    /// Welch-Satterthwaite degrees of freedom.
+    pub df: f64,
+    /// Two-sided p-value.
+    pub p: f64,
+}
+
+/// Welch's t-test of two samples; `None` when a sample has fewer than two values.
+/// Two samples without variance give p = 1 when their means are equal, else p = 0.
+pub fn welch(a: &[f64], b: &[f64]) -> Option<Welch> {
+    if a.len() < 2 || b.len() < 2 {
+        return None;
+    }
+    let (ma, sa) = mean_std(a);
+    let (mb, sb) = mean_std(b);
+    let (na, nb) = (a.len() as f64, b.len() as f64);
+    let (qa, qb) = (sa * sa / na, sb * sb / nb);
+    let se2 = qa + qb;
+    if se2 == 0.0 {
+        return Some(if ma == mb {
+            Welch {
+                t: 0.0,
+                df: na + nb - 2.0,
+                p: 1.0,
+            }
+        } else {
+            Welch {
+                t: (ma - mb).signum() * f64::INFINITY,
+                df: na + nb - 2.0,
+                p: 0.0,
+            }
+        });
+    }
+    let t = (ma - mb) / se2.sqrt();
+    let df = se2 * se2 / (qa * qa / (na - 1.0) + qb * qb / (nb - 1.0));
+    let p = incomplete_beta(df / 2.0, 0.5, df / (df + t * t)).clamp(0.0, 1.0);
+    Some(Welch { t, df, p })
+}
+
+/// ln Gamma(x) for x > 0 (Lanczos approximation, g = 7, 9 terms; relative error
+/// below 1e-13 for the arguments used here).
+pub fn ln_gamma(x: f64) -> f64 {
+    const G: f64 = 7.0;
+    const C: [f64; 9] = [
+        0.999_999_999_999_809_9,
+        676.520_368_121_885_1,
+        -1_259.139_216_722_402_8,
+        771.323_428_777_653_1,
+        -176.615_029_162_140_6,
+        12.507_343_278_686_905,
+        -0.138_571_095_265_720_12,
+        9.984_369_578_019_572e-6,
+        1.505_632_735_149_311_6e-7,
+    ];
+    if x < 0.5 {
+        // Reflection: Gamma(x) Gamma(1 - x) = pi / sin(pi x).
+        let pi = std::f64::consts::PI;
+        return (pi / (pi * x).sin()).ln() - ln_gamma(1.0 - x);
+    }
+    let x = x - 1.0;
+    let mut a = C[0];
+    let t = x + G + 0.5;
+    for (i, c) in C.iter().enumerate().skip(1) {
+        a += c / (x + i as f64);
+    }
+    0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + a.ln()
+}
+
+/// The regularised incomplete beta function I_x(a, b) for a, b > 0 and x in [0, 1],
+/// by its continued fraction (evaluated with the modified Lentz method), using the
+/// symmetry I_x(a, b) = 1 - I_{1-x}(b, a) where the fraction converges slowly.
+pub fn incomplete_beta(a: f64, b: f64, x: f64) -> f64 {
+    if !(x > 0.0) {
+        return 0.0;
+    }
+    if x >= 1.0 {
+        return 1.0;
+    }
+    let ln_front = ln_gamma(a + b) - ln_gamma(a) - ln_gamma(b) + a * x.ln() + b * (1.0 - x).ln();
+    if x < (a + 1.0) / (a + b + 2.0) {
+        ln_front.exp() * beta_fraction(a, b, x) / a
+    } else {
+        1.0 - ln_front.exp() * beta_fraction(b, a, 1.0 - x) / b
+    }
+}
+
+/// The continued fraction 1 / (1 + d1 / (1 + d2 / (1 + ...))) of I_x(a, b), with
+/// d_{2m+1} = -(a + m)(a + b + m) x / ((a + 2m)(a + 2m + 1)) and
+/// d_{2m} = m (b - m) x / ((a + 2m - 1)(a + 2m)).
+fn beta_fraction(a: f64, b: f64, x: f64) -> f64 {
+    const TINY: f64 = 1e-300;
+    let clamp = |v: f64| if v.abs() < TINY { TINY } else { v };
+    let mut c = 1.0;
+    let mut d = 1.0 / clamp(1.0 - (a + b) * x / (a + 1.0));
+    let mut f = d;
+    for m in 1..10_000 {
+        let m = f64::from(m);
+        let even = m * (b - m) * x / ((a + 2.0 * m - 1.0) * (a + 2.0 * m));
+        d = 1.0 / clamp(1.0 + even * d);
+        c = clamp(1.0 + even / c);
+        f *= d * c;
+        let odd = -(a + m) * (a + b + m) * x / ((a + 2.0 * m) * (a + 2.0 * m + 1.0));
+        d = 1.0 / clamp(1.0 + odd * d);
+        c = clamp(1.0 + odd / c);
+        let step = d * c;
+        f *= step;
+        if (step - 1.0).abs() < 1e-15 {
+            break;
+        }
+    }
+    f
+}
