@@ -236,7 +236,7 @@ pub fn ln_gamma(x: f64) -> f64 {
 /// by its continued fraction (evaluated with the modified Lentz method), using the
 /// symmetry I_x(a, b) = 1 - I_{1-x}(b, a) where the fraction converges slowly.
 pub fn incomplete_beta(a: f64, b: f64, x: f64) -> f64 {
-    if !(x > 0.0) {
+    if x.is_nan() || x <= 0.0 {
         return 0.0;
     }
     if x >= 1.0 {
