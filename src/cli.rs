@@ -27,6 +27,9 @@ pub enum Command {
     /// Train a PPO agent with reward R + beta * E: actor processes, the empowerment
     /// service and a candle learner, connected by shared memory.
     Train(TrainArgs),
+    /// Every (arm, seed) pair trained with `train`, then mean +/- std curves and a
+    /// summary table per arm (steps to a success rate, final success, Welch's t-test).
+    Experiment(ExperimentArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
     /// (train helper) the learner process of a run.
@@ -335,6 +338,50 @@ pub struct TrainArgs {
     /// Restarts of crashed actors or services allowed over the run.
     #[arg(long, default_value_t = 20)]
     pub max_restarts: u32,
+}
+
+/// `fulcrum experiment`
+#[derive(Debug, Args)]
+pub struct ExperimentArgs {
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    pub world: String,
+    /// Seeds per arm (seeds 1..=N).
+    #[arg(long, default_value_t = 10)]
+    pub seeds: u64,
+    /// Env steps per run [default: train's].
+    #[arg(long)]
+    pub steps: Option<u64>,
+    /// Beta of the empowerment arm [default: the world's].
+    #[arg(long, allow_negative_numbers = true)]
+    pub beta: Option<f64>,
+    /// Arms, comma separated: baseline (no empowerment), empowerment.
+    #[arg(long, default_value = "baseline,empowerment")]
+    pub arms: String,
+    /// Also one empowerment arm per beta, comma separated (named beta-<b>).
+    #[arg(long, allow_hyphen_values = true)]
+    pub beta_sweep: Option<String>,
+    /// Experiment directory [default: experiments/<world>-<time>]; the same command
+    /// with the same directory resumes.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Runs at a time [default: cores / --actors].
+    #[arg(long)]
+    pub parallel: Option<usize>,
+    /// Actor processes per run.
+    #[arg(long, default_value_t = 1)]
+    pub actors: usize,
+    /// Worlds per actor.
+    #[arg(long, default_value_t = 8)]
+    pub envs_per_actor: usize,
+    /// Success rate whose first crossing is reported.
+    #[arg(long, default_value_t = 0.9)]
+    pub threshold: f64,
+    /// Updates over which the success rate is pooled (episode-weighted).
+    #[arg(long, default_value_t = 10)]
+    pub smooth: usize,
+    /// More `train` flags for every run, after `--` (e.g. `-- --lr 3e-4`).
+    #[arg(last = true, allow_hyphen_values = true)]
+    pub train_args: Vec<String>,
 }
 
 /// Hidden child processes of `fulcrum train`.

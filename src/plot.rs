@@ -26,6 +26,9 @@
 //! Every file is written with [`write_atomic`]: a half-written PNG never appears at the
 //! final path.
 
+mod bands;
+pub use bands::{band_chart_png, band_chart_svg, Band, BandChart};
+
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};

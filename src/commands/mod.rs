@@ -9,6 +9,7 @@ use crate::cli::{Command, MethodArg};
 
 pub mod bench;
 pub mod empowerment;
+pub mod experiment;
 pub mod serve;
 pub mod train;
 pub mod world;
@@ -56,6 +57,7 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Serve(a) => serve::run(&a),
         Command::Bench(a) => bench::run(a),
         Command::Train(a) => train::run(&a),
+        Command::Experiment(a) => experiment::run(&a),
         Command::Learner(a) => train::learner_process(&a),
         Command::Actor(a) => train::actor_process(&a),
         Command::BenchClient {

@@ -75,7 +75,7 @@ fn die_with_parent(parent: u32) {
     }
 }
 
-fn cores() -> usize {
+pub(crate) fn cores() -> usize {
     std::thread::available_parallelism()
         .map(|n| n.get())
         .unwrap_or(1)
@@ -228,6 +228,29 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         write_config(&paths, &cfg)?;
         return Ok((cfg, w, paths, true));
     }
+    let (cfg, w) = plan(a)?;
+    let dir = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs").join(&cfg.run_id));
+    let paths = RunPaths { dir: dir.clone() };
+    if paths.config().exists() {
+        return bad(format!(
+            "{} already holds a run; continue it with --resume {} or choose another --out",
+            dir.display(),
+            dir.display()
+        ));
+    }
+    std::fs::create_dir_all(paths.plots())
+        .with_context(|| format!("cannot create {}", dir.display()))?;
+    write_config(&paths, &cfg)?;
+    Ok((cfg, w, paths, false))
+}
+
+/// The resolved and checked configuration of a new run, and its world: no file is
+/// written and no process started (`fulcrum experiment` checks every run with it
+/// before starting any).
+pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
     let spec = a.world.clone().unwrap_or_default();
     let w = world(&spec)?;
     // A file path is stored absolute so that a resume from elsewhere finds it.
@@ -300,22 +323,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
             }
         }
     }
-    let dir = a
-        .out
-        .clone()
-        .unwrap_or_else(|| PathBuf::from("runs").join(&run_id));
-    let paths = RunPaths { dir: dir.clone() };
-    if paths.config().exists() {
-        return bad(format!(
-            "{} already holds a run; continue it with --resume {} or choose another --out",
-            dir.display(),
-            dir.display()
-        ));
-    }
-    std::fs::create_dir_all(paths.plots())
-        .with_context(|| format!("cannot create {}", dir.display()))?;
-    write_config(&paths, &cfg)?;
-    Ok((cfg, w, paths, false))
+    Ok((cfg, w))
 }
 
 fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
@@ -329,7 +337,7 @@ fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
 }
 
 /// `YYYYmmdd-HHMMSS` in UTC, without a date crate.
-fn chrono_like_now() -> String {
+pub(crate) fn chrono_like_now() -> String {
     let secs = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map(|d| d.as_secs())

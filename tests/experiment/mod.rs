@@ -1,0 +1,303 @@
+//! `fulcrum experiment`: the aggregation of finished runs against hand-counted values,
+//! resuming an interrupted experiment (real `train` runs, a real SIGINT), and refusals.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant, SystemTime};
+
+use fulcrum_learner::run::{read_metrics, MetricsRow, METRICS_COLUMNS};
+
+fn exp_dir(name: &str) -> PathBuf {
+    let nanos = SystemTime::now()
+        .duration_since(SystemTime::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let d = std::env::temp_dir().join(format!("fulcrum-exp-{name}-{}-{nanos}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn fulcrum() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_fulcrum"));
+    c.stdin(Stdio::null());
+    c
+}
+
+/// A finished run made by hand: 10 updates of 1024 steps, 10 episodes each, success
+/// `f(i)` at update i, and a checkpoint file (its presence marks the run finished).
+fn fake_run(dir: &Path, f: impl Fn(u64) -> f64) {
+    std::fs::create_dir_all(dir.join("checkpoints")).unwrap();
+    std::fs::write(dir.join("checkpoints/latest.safetensors"), b"x").unwrap();
+    let mut text = METRICS_COLUMNS.join(",") + "\n";
+    for i in 1..=10u64 {
+        let row = MetricsRow {
+            update: i,
+            env_steps: 1024 * i,
+            episodes: 10,
+            extrinsic_return: f(i),
+            success_rate: f(i),
+            ..MetricsRow::default()
+        };
+        text += &(row.csv() + "\n");
+    }
+    std::fs::write(dir.join("metrics.csv"), text).unwrap();
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-9 * (1.0 + b.abs())
+}
+
+#[test]
+fn finished_runs_are_aggregated_into_hand_counted_figures() {
+    let dir = exp_dir("aggregate");
+    // baseline: seed 1 = i/10 (0.9 at update 9), seed 2 = min(1, 2i/10) (at update 5),
+    // seed 3 = 0 (never). empowerment: 1 from update 2 on, every seed.
+    fake_run(&dir.join("runs/baseline/seed-1"), |i| i as f64 / 10.0);
+    fake_run(&dir.join("runs/baseline/seed-2"), |i| {
+        (2.0 * i as f64 / 10.0).min(1.0)
+    });
+    fake_run(&dir.join("runs/baseline/seed-3"), |_| 0.0);
+    for s in 1..=3 {
+        fake_run(&dir.join(format!("runs/empowerment/seed-{s}")), |i| {
+            if i >= 2 {
+                1.0
+            } else {
+                0.0
+            }
+        });
+    }
+    let out = fulcrum()
+        .args([
+            "experiment",
+            "room",
+            "--seeds",
+            "3",
+            "--steps",
+            "10240",
+            "--smooth",
+            "1",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("0 to run"), "nothing is rerun: {stderr}");
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+    let arm = |i: usize, k: &str| s["arms"][i][k].clone();
+    let f = |v: &serde_json::Value| v.as_f64().unwrap();
+
+    // Steps to 0.9: baseline 9216 and 5120 (2 of 3): mean 7168, std |9216-5120|/sqrt 2.
+    assert_eq!(arm(0, "reached"), 2);
+    assert!(close(f(&arm(0, "steps_to_threshold")["mean"]), 7168.0));
+    assert!(close(
+        f(&arm(0, "steps_to_threshold")["std"]),
+        4096.0 / 2f64.sqrt()
+    ));
+    assert_eq!(arm(1, "reached"), 3);
+    assert!(close(f(&arm(1, "steps_to_threshold")["mean"]), 2048.0));
+    assert!(close(f(&arm(1, "steps_to_threshold")["std"]), 0.0));
+
+    // Area under the success curve (the first value held back to 0, linear between
+    // updates, divided by 10240): seed 1: (0.1 * 1024 + 1024 * 99 / 20) / 10240 = 0.505;
+    // seed 2: (0.2 * 1024 + 1024 * 2.4 + 5 * 1024) / 10240 = 0.76; seed 3: 0.
+    let auc: Vec<f64> = (0..3).map(|k| f(&arm(0, "per_seed")[k]["auc"])).collect();
+    assert!(
+        close(auc[0], 0.505) && close(auc[1], 0.76) && close(auc[2], 0.0),
+        "{auc:?}"
+    );
+    // Empowerment: 0 until 1024, up to 1 at 2048, then 1: (512 + 8 * 1024) / 10240.
+    assert!(close(
+        f(&arm(1, "per_seed")[0]["auc"]),
+        (512.0 + 8.0 * 1024.0) / 10240.0
+    ));
+
+    // The band at 5120 (update 5): baseline 0.5, 1, 0 -> mean 0.5, std 0.5.
+    let k = 100; // 5120 / (10240 / 200)
+    assert!(close(f(&s["grid"][k]), 5120.0));
+    assert!(close(f(&arm(0, "success_mean")[k]), 0.5));
+    assert!(close(f(&arm(0, "success_std")[k]), 0.5));
+
+    // Final success (last 10 % = update 10): 1, 1, 0.
+    assert!(close(f(&arm(0, "final_success")["mean"]), 2.0 / 3.0));
+
+    // Welch on steps to 0.9 with the never-reached seed at the budget: baseline
+    // {9216, 5120, 10240} (mean 8192, variance 7340032), empowerment {2048 x 3}
+    // (variance 0): df = n - 1 = 2, t = (2048 - 8192) / sqrt(7340032 / 3), and with
+    // 2 df, p = 1 - |t| / sqrt(2 + t^2).
+    let w = &s["comparisons"][0]["steps_to_threshold"];
+    let t = -6144.0 / (7_340_032.0f64 / 3.0).sqrt();
+    assert!(close(f(&w["t"]), t));
+    assert!(close(f(&w["df"]), 2.0));
+    assert!(close(f(&w["p"]), 1.0 - t.abs() / (2.0 + t * t).sqrt()));
+
+    // The table and the pictures.
+    let md = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(md.contains("| baseline | 3/3 | 2/3 |"), "{md}");
+    for f in ["success.png", "success.svg", "return.png", "return.svg"] {
+        assert!(
+            dir.join("plots").join(f).metadata().unwrap().len() > 1000,
+            "{f}"
+        );
+    }
+    let svg = std::fs::read_to_string(dir.join("plots/success.svg")).unwrap();
+    assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
+    assert!(svg.contains(">baseline</text>") && svg.contains(">empowerment</text>"));
+    // One band and one legend swatch per arm, as filled polygons.
+    assert_eq!(svg.matches("<polygon").count(), 4);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+fn first_line_and_status(args: &[&str], dir: &Path) -> (i32, String) {
+    let out = fulcrum().args(args).arg("--out").arg(dir).output().unwrap();
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn bad_experiments_are_refused_before_any_run() {
+    let dir = exp_dir("bad");
+    for (args, says) in [
+        (
+            vec!["experiment", "room", "--arms", "baseline,nope"],
+            "unknown arm 'nope'",
+        ),
+        (vec!["experiment", "room", "--seeds", "0"], "--seeds"),
+        (vec!["experiment", "room", "--beta", "-1"], "--beta -1"),
+        (
+            vec!["experiment", "room", "--threshold", "1.5"],
+            "--threshold",
+        ),
+        (
+            vec!["experiment", "room", "--", "--seed", "4"],
+            "may not set",
+        ),
+        (vec!["experiment", "no-such-world"], "no-such-world"),
+    ] {
+        let (code, err) = first_line_and_status(&args, &dir);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(!dir.exists(), "{args:?} created {}", dir.display());
+    }
+}
+
+/// Small runs of the room: 1 actor x 4 worlds x 32 steps = batch 128.
+const RUN: &[&str] = &[
+    "experiment",
+    "room",
+    "--seeds",
+    "2",
+    "--arms",
+    "baseline",
+    "--parallel",
+    "1",
+    "--envs-per-actor",
+    "4",
+    "--steps",
+    "196608",
+];
+const TRAIN: &[&str] = &["--", "--steps-per-chunk", "32", "--checkpoint-every", "8"];
+
+#[test]
+fn an_interrupted_experiment_resumes_without_rerunning_finished_runs() {
+    let dir = exp_dir("resume");
+    let (s1, s2) = (
+        dir.join("runs/baseline/seed-1"),
+        dir.join("runs/baseline/seed-2"),
+    );
+    let mut child = fulcrum()
+        .args(RUN)
+        .arg("--out")
+        .arg(&dir)
+        .args(TRAIN)
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Wait for seed 1 to finish and seed 2 to have a checkpoint and some rows.
+    let t0 = Instant::now();
+    loop {
+        let done1 = read_metrics(&s1.join("metrics.csv"))
+            .map(|r| r.last().map(|r| r.env_steps) == Some(196_608))
+            .unwrap_or(false);
+        let rows2 = read_metrics(&s2.join("metrics.csv"))
+            .map(|r| r.len())
+            .unwrap_or(0);
+        if done1 && rows2 >= 20 && s2.join("checkpoints/latest.safetensors").exists() {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(120),
+            "the experiment did not get to seed 2"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let seed1 = std::fs::read(s1.join("metrics.csv")).unwrap();
+    let seed1_time = s1
+        .join("metrics.csv")
+        .metadata()
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert!(Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "no stop after SIGINT"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert_eq!(status.code(), Some(130));
+    let rows2 = read_metrics(&s2.join("metrics.csv")).unwrap().len();
+    assert!(rows2 < 1536, "seed 2 was interrupted ({rows2} rows)");
+
+    // The same command again: seed 1 is kept as it is, seed 2 resumes.
+    let out = fulcrum()
+        .args(RUN)
+        .arg("--out")
+        .arg(&dir)
+        .args(TRAIN)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("1 to run"), "{stderr}");
+    assert!(stderr.contains("resuming baseline/seed-2"), "{stderr}");
+    assert!(
+        !stderr.contains("seed-1 ("),
+        "seed 1 is not run again: {stderr}"
+    );
+    assert_eq!(std::fs::read(s1.join("metrics.csv")).unwrap(), seed1);
+    assert_eq!(
+        s1.join("metrics.csv")
+            .metadata()
+            .unwrap()
+            .modified()
+            .unwrap(),
+        seed1_time
+    );
+    // Seed 2 has one row per update, 1..=1536, none twice.
+    let rows = read_metrics(&s2.join("metrics.csv")).unwrap();
+    assert_eq!(rows.len(), 1536);
+    for (i, r) in rows.iter().enumerate() {
+        assert_eq!(r.update, i as u64 + 1);
+        assert_eq!(r.env_steps, 128 * (i as u64 + 1));
+    }
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["arms"][0]["finished"], 2);
+    let _ = std::fs::remove_dir_all(&dir);
+}
