@@ -194,6 +194,9 @@ pub struct MatrixArgs {
     /// A joint column `a+b` (repeatable).
     #[arg(long)]
     pub joint: Vec<String>,
+    /// Also draw the matrix as a PNG (cells coloured by value, the selection framed).
+    #[arg(long)]
+    pub png: Option<PathBuf>,
     /// dp (default) or enumerate.
     #[arg(long, value_enum, default_value_t = MethodArg::Dp)]
     pub method: MethodArg,
@@ -262,6 +265,17 @@ pub struct BenchArgs {
     /// Also write the figures as JSON to this file.
     #[arg(long)]
     pub json: Option<PathBuf>,
+    /// Run the scaling study instead (several minutes): end-to-end training steps/s
+    /// over 1, 2, 4 actors x 16, 64, 256 worlds per actor, and empowerment table time
+    /// over 10^3..10^7 states; draws two PNGs into --plots.
+    #[arg(long, conflicts_with = "quick")]
+    pub scaling: bool,
+    /// Where the scaling study draws its pictures.
+    #[arg(long, default_value = "docs", requires = "scaling")]
+    pub plots: PathBuf,
+    /// Scaling study: leave out state counts above this (e.g. 1000000 on a small machine).
+    #[arg(long, requires = "scaling")]
+    pub max_states: Option<u64>,
 }
 
 /// `fulcrum train`

@@ -27,7 +27,10 @@
 //! final path.
 
 mod bands;
+mod matrix;
+mod scene;
 pub use bands::{band_chart_png, band_chart_svg, Band, BandChart};
+pub use matrix::{matrix_png, MatrixPicture};
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};

@@ -13,6 +13,8 @@ use fulcrum_shared::{load_world, parse_world, ObjectSet, World};
 use serde_json::json;
 
 use crate::cli::BenchArgs;
+
+mod scaling;
 use crate::plot::write_atomic;
 
 /// One measured figure.
@@ -122,16 +124,26 @@ pub fn run(a: BenchArgs) -> Result<()> {
         m
     );
 
-    empowerment_exp2(reps, a.quick, &mut figs)?;
-    empowerment_big(a.quick, &mut figs)?;
-    service_figures(a.quick, &mut figs)?;
-    training_figures(a.quick, &mut figs)?;
-    chunk_transport(a.quick, &mut figs)?;
-    end_to_end(a.quick, &mut figs)?;
+    if a.scaling {
+        scaling::run(&a.plots, a.max_states, &mut figs)?;
+    } else {
+        empowerment_exp2(reps, a.quick, &mut figs)?;
+        empowerment_big(a.quick, &mut figs)?;
+        service_figures(a.quick, &mut figs)?;
+        training_figures(a.quick, &mut figs)?;
+        chunk_transport(a.quick, &mut figs)?;
+        end_to_end(a.quick, &mut figs)?;
+    }
 
     println!(
         "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
-        if a.quick { " --quick" } else { "" },
+        if a.quick {
+            " --quick"
+        } else if a.scaling {
+            " --scaling"
+        } else {
+            ""
+        },
         m["cpu"].as_str().unwrap_or("?"),
         m["cores"],
         m["memory_gib"],
@@ -161,6 +173,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let v = json!({
             "machine": m,
             "quick": a.quick,
+            "scaling": a.scaling,
             "figures": figs.iter().map(|f| json!({"name": f.name, "value": f.value, "unit": f.unit, "note": f.note})).collect::<Vec<_>>(),
         });
         write_atomic(path, serde_json::to_string_pretty(&v)?.as_bytes())
@@ -857,7 +870,9 @@ fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
 fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let steps = if quick { 16_384 } else { 102_400 };
+    // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
+    let batch = (super::train::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let steps = if quick { 16 } else { 100 } * batch;
     let exe = std::env::current_exe()?;
     let out = std::process::Command::new(exe)
         .args(["train", "exp1-tree", "--steps", &steps.to_string(), "--out"])

@@ -68,6 +68,20 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
     let e = engine(&w)?;
     let m = e.matrix(&columns, hu, he, a.method.into())?;
     let elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
+    if let Some(path) = &a.png {
+        let pic = crate::plot::MatrixPicture {
+            title: format!(
+                "{}: tool-object empowerment, h = {hu} unequipped / {he} equipped",
+                w.name
+            ),
+            rows: m.tools.clone(),
+            columns: m.columns.clone(),
+            values: m.values.clone(),
+            selected: m.selection.clone(),
+        };
+        crate::plot::matrix_png(path, &pic)?;
+        eprintln!("wrote {}", path.display());
+    }
     if a.json {
         let selection: serde_json::Map<String, serde_json::Value> = m
             .columns

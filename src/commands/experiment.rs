@@ -934,11 +934,13 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
         ),
     ] {
         let chart = crate::plot::BandChart {
-            title: format!("{}: {y}, mean ± std over {seeds} seeds", s.world),
-            y_label: y.to_string(),
-            x: s.grid.clone(),
-            bands,
             y_range: unit,
+            ..crate::plot::BandChart::over_steps(
+                format!("{}: {y}, mean ± std over {seeds} seeds", s.world),
+                y.to_string(),
+                s.grid.clone(),
+                bands,
+            )
         };
         for ext in ["png", "svg"] {
             let path = dir.join("plots").join(format!("{file}.{ext}"));

@@ -6,14 +6,12 @@
 //! it with plotters' bitmap backend and this module's text renderer, the SVG writes the
 //! same shapes as SVG elements, so the two files show the same picture.
 
-use std::fmt::Write as _;
 use std::path::Path;
 
-use plotters::prelude::*;
-
+use super::scene::{self, Shape};
 use super::{
-    draw_err, fonts, format_steps, nice_range, nice_ticks, rgb, save_png, text_width, write_atomic,
-    Canvas, HAlign, Label, PlotError, Rgb, VAlign, AXIS, GRID, LABEL_SIZE, TICK_SIZE, TITLE_SIZE,
+    fonts, format_steps, nice_range, nice_ticks, text_width, HAlign, Label, PlotError, Rgb, VAlign,
+    AXIS, GRID, LABEL_SIZE, TICK_SIZE, TITLE_SIZE,
 };
 
 /// One arm's curve: mean and standard deviation at each x (NaN = no value there).
@@ -32,14 +30,58 @@ pub struct Band {
 pub struct BandChart {
     /// Title on top.
     pub title: String,
+    /// x-axis title.
+    pub x_label: String,
     /// y-axis title.
     pub y_label: String,
-    /// Env steps of the points (shared by all bands).
+    /// x of the points (shared by all bands), e.g. env steps.
     pub x: Vec<f64>,
     /// The arms, drawn in order (first underneath).
     pub bands: Vec<Band>,
     /// Fixed y range (e.g. 0..1 for a rate); None = fit the bands.
     pub y_range: Option<(f64, f64)>,
+    /// Logarithmic x axis (decades); points with x <= 0 are left out.
+    pub x_log: bool,
+    /// Logarithmic y axis (decades); values <= 0 are left out.
+    pub y_log: bool,
+}
+
+impl BandChart {
+    /// A linear chart over environment steps.
+    pub fn over_steps(title: String, y_label: String, x: Vec<f64>, bands: Vec<Band>) -> Self {
+        BandChart {
+            title,
+            x_label: "environment steps".into(),
+            y_label,
+            x,
+            bands,
+            y_range: None,
+            x_log: false,
+            y_log: false,
+        }
+    }
+}
+
+/// A decade's label: 1k, 10M, 0.01, 1.
+fn decade_label(e: i32) -> String {
+    match e {
+        e if e >= 9 => format!("{}G", 10f64.powi(e - 9)),
+        e if e >= 6 => format!("{}M", 10f64.powi(e - 6)),
+        e if e >= 3 => format!("{}k", 10f64.powi(e - 3)),
+        e if e >= 0 => format!("{}", 10f64.powi(e)),
+        e => format!("{:.*}", (-e) as usize, 10f64.powi(e)),
+    }
+}
+
+/// Decades covering lo..hi (both > 0): (log lo, log hi, ticks as (log value, label)).
+fn decades(lo: f64, hi: f64) -> (f64, f64, Vec<(f64, String)>) {
+    let (a, b) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+    let b = b.max(a + 1);
+    (
+        f64::from(a),
+        f64::from(b),
+        (a..=b).map(|e| (f64::from(e), decade_label(e))).collect(),
+    )
 }
 
 /// Arm colours: blue and green first, as in the paper (baseline blue, empowerment green).
@@ -57,24 +99,53 @@ const BAND_ALPHA: f64 = 0.22;
 const WIDTH: u32 = 820;
 const HEIGHT: u32 = 520;
 
-enum Shape {
-    /// Filled polygon with opacity.
-    Fill(Vec<(f64, f64)>, Rgb, f64),
-    /// Polyline of a width.
-    Line(Vec<(f64, f64)>, Rgb, f64),
-    Text(Label),
-}
-
 /// The chart as shapes in pixel coordinates.
 fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
     let mut out = Vec::new();
-    let x_lo = 0.0;
-    let x_hi =
-        c.x.iter()
-            .copied()
-            .filter(|v| v.is_finite())
-            .fold(10.0, f64::max);
+    // On a log axis everything is drawn in log10 units; non-positive values vanish.
+    let lx = |v: f64| match (c.x_log, v > 0.0) {
+        (false, _) => v,
+        (true, true) => v.log10(),
+        (true, false) => f64::NAN,
+    };
+    let ly = |v: f64| match (c.y_log, v > 0.0) {
+        (false, _) => v,
+        (true, true) => v.log10(),
+        (true, false) => f64::NAN,
+    };
+    let positive_range = |vals: &mut dyn Iterator<Item = f64>| {
+        let (lo, hi) = vals
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+        if lo.is_finite() {
+            decades(lo, hi)
+        } else {
+            decades(1.0, 10.0)
+        }
+    };
+    let xs: Vec<f64> = c.x.iter().map(|&v| lx(v)).collect();
+    let (x_lo, x_hi, x_ticks): (f64, f64, Vec<(f64, String)>) = if c.x_log {
+        positive_range(&mut c.x.iter().copied())
+    } else {
+        let x_hi =
+            c.x.iter()
+                .copied()
+                .filter(|v| v.is_finite())
+                .fold(10.0, f64::max);
+        let (ticks, step) = nice_ticks(0.0, x_hi, 9);
+        let t = ticks
+            .into_iter()
+            .map(|x| (x, format_steps(x, step, x_hi)))
+            .collect();
+        (0.0, x_hi, t)
+    };
     let (y_lo, y_hi, y_ticks) = match c.y_range {
+        _ if c.y_log => positive_range(&mut c.bands.iter().flat_map(|b| {
+            b.mean
+                .iter()
+                .zip(&b.std)
+                .flat_map(|(m, s)| [m - s.max(0.0), m + s.max(0.0), *m])
+        })),
         Some((lo, hi)) => nice_range(lo, hi, 5),
         None => {
             let vals = c.bands.iter().flat_map(|b| {
@@ -118,8 +189,8 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         VAlign::Middle,
     )));
     // Grid, ticks, frame.
-    let (x_ticks, x_step) = nice_ticks(x_lo, x_hi, 9);
-    for &x in &x_ticks {
+    for (x, text) in &x_ticks {
+        let x = *x;
         out.push(Shape::Line(vec![(px(x), top), (px(x), bottom)], GRID, 1.0));
         out.push(Shape::Line(
             vec![(px(x), bottom), (px(x), bottom + 5.0)],
@@ -127,7 +198,7 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             1.0,
         ));
         out.push(Shape::Text(Label::new(
-            format_steps(x, x_step, x_hi),
+            text.clone(),
             px(x),
             bottom + 9.0,
             TICK_SIZE,
@@ -167,7 +238,7 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         1.0,
     ));
     out.push(Shape::Text(Label::new(
-        "environment steps",
+        c.x_label.clone(),
         (left + right) / 2.0,
         bottom + 48.0,
         LABEL_SIZE,
@@ -190,19 +261,38 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
     // Bands first (all of them), then the mean lines on top.
     for (i, b) in c.bands.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        for run in finite_runs(&c.x, &b.mean, &b.std) {
+        for run in finite_runs(&xs, &b.mean, &b.std) {
+            let band = |m: f64, s: f64, sign: f64| clamp(py(ly(m + sign * s)));
             let mut poly: Vec<(f64, f64)> = run
                 .iter()
-                .map(|&(x, m, s)| (px(x), clamp(py(m + s))))
+                .map(|&(x, m, s)| (px(x), band(m, s, 1.0)))
                 .collect();
-            poly.extend(run.iter().rev().map(|&(x, m, s)| (px(x), clamp(py(m - s)))));
+            // On a log axis a band reaching 0 or below is cut at the bottom.
+            poly.extend(run.iter().rev().map(|&(x, m, s)| {
+                let lo = band(m, s, -1.0);
+                (px(x), if lo.is_finite() { lo } else { bottom })
+            }));
             out.push(Shape::Fill(poly, color, BAND_ALPHA));
         }
     }
     for (i, b) in c.bands.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        for run in finite_runs(&c.x, &b.mean, &b.std) {
-            let pts = run.iter().map(|&(x, m, _)| (px(x), clamp(py(m)))).collect();
+        for run in finite_runs(
+            &xs,
+            &b.mean.iter().map(|&m| ly(m)).collect::<Vec<_>>(),
+            &b.std,
+        ) {
+            let pts: Vec<(f64, f64)> = run.iter().map(|&(x, m, _)| (px(x), clamp(py(m)))).collect();
+            if pts.len() <= 12 {
+                // Few points: a marker on each.
+                for &(x, y) in &pts {
+                    out.push(Shape::Fill(
+                        vec![(x - 4.0, y), (x, y - 4.0), (x + 4.0, y), (x, y + 4.0)],
+                        color,
+                        1.0,
+                    ));
+                }
+            }
             out.push(Shape::Line(pts, color, 2.5));
         }
     }
@@ -267,121 +357,13 @@ fn check(path: &Path, c: &BandChart) -> Result<(), PlotError> {
 /// Draws the chart as a PNG (820 x 520 pixels) at `path`, written atomically.
 pub fn band_chart_png(path: &Path, c: &BandChart) -> Result<(), PlotError> {
     check(path, c)?;
-    let font = fonts(path)?;
-    let shapes = layout(c, font);
-    let mut buf = vec![255u8; WIDTH as usize * HEIGHT as usize * 3];
-    {
-        let area = BitMapBackend::with_buffer(&mut buf, (WIDTH, HEIGHT)).into_drawing_area();
-        let pix = |pts: &[(f64, f64)]| -> Vec<(i32, i32)> {
-            pts.iter()
-                .map(|&(x, y)| (x.round() as i32, y.round() as i32))
-                .collect()
-        };
-        let fail = |message: String| PlotError::Draw {
-            path: path.to_path_buf(),
-            message,
-        };
-        for s in &shapes {
-            match s {
-                Shape::Fill(pts, color, alpha) => area
-                    .draw(&Polygon::new(pix(pts), rgb(*color).mix(*alpha).filled()))
-                    .map_err(|e| fail(draw_err(e)))?,
-                Shape::Line(pts, color, width) => area
-                    .draw(&PathElement::new(
-                        pix(pts),
-                        rgb(*color).stroke_width(width.round() as u32),
-                    ))
-                    .map_err(|e| fail(draw_err(e)))?,
-                Shape::Text(_) => {}
-            }
-        }
-        area.present().map_err(|e| fail(draw_err(e)))?;
-    }
-    let mut canvas = Canvas {
-        buf: &mut buf,
-        width: WIDTH,
-        height: HEIGHT,
-    };
-    for s in &shapes {
-        if let Shape::Text(l) = s {
-            canvas.text(font, l);
-        }
-    }
-    save_png(path, &buf, WIDTH, HEIGHT)
+    let shapes = layout(c, fonts(path)?);
+    scene::png(path, WIDTH, HEIGHT, &shapes)
 }
 
-fn hex(c: Rgb) -> String {
-    format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2])
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-fn points(pts: &[(f64, f64)]) -> String {
-    pts.iter()
-        .map(|(x, y)| format!("{x:.1},{y:.1}"))
-        .collect::<Vec<_>>()
-        .join(" ")
-}
-
-/// Draws the chart as an SVG at `path`, written atomically (text as SVG text, in the
-/// Hack font where installed, else any monospace font).
+/// Draws the chart as an SVG at `path`, written atomically.
 pub fn band_chart_svg(path: &Path, c: &BandChart) -> Result<(), PlotError> {
     check(path, c)?;
-    let font = fonts(path)?;
-    let shapes = layout(c, font);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{WIDTH}\" height=\"{HEIGHT}\" viewBox=\"0 0 {WIDTH} {HEIGHT}\" font-family=\"Hack, DejaVu Sans Mono, monospace\">\n<rect width=\"100%\" height=\"100%\" fill=\"white\"/>\n"
-    );
-    for shape in &shapes {
-        // Writing to a String cannot fail.
-        let _ = match shape {
-            Shape::Fill(pts, color, alpha) => writeln!(
-                s,
-                "<polygon points=\"{}\" fill=\"{}\" fill-opacity=\"{alpha}\" stroke=\"none\"/>",
-                points(pts),
-                hex(*color)
-            ),
-            Shape::Line(pts, color, width) => writeln!(
-                s,
-                "<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\" stroke-linejoin=\"round\"/>",
-                points(pts),
-                hex(*color)
-            ),
-            Shape::Text(l) => {
-                let anchor = match l.h {
-                    HAlign::Left => "start",
-                    HAlign::Center => "middle",
-                    HAlign::Right => "end",
-                };
-                let baseline = match l.v {
-                    VAlign::Top => "hanging",
-                    VAlign::Middle => "central",
-                };
-                let rotate = if l.vertical {
-                    format!(" transform=\"rotate(-90 {:.1} {:.1})\"", l.x, l.y)
-                } else {
-                    String::new()
-                };
-                writeln!(
-                    s,
-                    "<text x=\"{:.1}\" y=\"{:.1}\" font-size=\"{:.1}\" fill=\"{}\" text-anchor=\"{anchor}\" dominant-baseline=\"{baseline}\"{rotate}>{}</text>",
-                    l.x,
-                    l.y,
-                    l.size * 0.8,
-                    hex(l.color),
-                    escape(&l.text)
-                )
-            }
-        };
-    }
-    s.push_str("</svg>\n");
-    write_atomic(path, s.as_bytes()).map_err(|error| PlotError::Io {
-        path: path.to_path_buf(),
-        error,
-    })
+    let shapes = layout(c, fonts(path)?);
+    scene::svg(path, WIDTH, HEIGHT, &shapes)
 }

@@ -520,3 +520,32 @@ fn landscape_and_trace_pictures_are_written() {
     assert_eq!(std::fs::read_dir(&d).unwrap().count(), 2);
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn the_matrix_picture_has_a_row_per_tool() {
+    let d = temp_dir("matrix-png");
+    let m = d.join("matrix.png");
+    let out = fulcrum(&[
+        "empowerment",
+        "matrix",
+        "exp2",
+        "--joint",
+        "boulder+door",
+        "--png",
+        m.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bytes = std::fs::read(&m).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+    // Height: 64 px of title and header, 42 px per tool (exp2 has 4), 40 px of note.
+    let h = u32::from_be_bytes(bytes[20..24].try_into().unwrap());
+    assert_eq!(h, 64 + 4 * 42 + 40);
+    // Width: at least three 130 px columns.
+    let w = u32::from_be_bytes(bytes[16..20].try_into().unwrap());
+    assert!(w >= 3 * 130, "{w}");
+    let _ = std::fs::remove_dir_all(&d);
+}
