@@ -74,7 +74,7 @@ struct Spec {
 
 /// `train` flags parsed exactly as the child will parse them.
 #[derive(Debug, Parser)]
-#[command(name = "train", no_binary_name = false)]
+#[command(name = "train")]
 struct TrainOnly {
     #[command(flatten)]
     train: TrainArgs,
@@ -323,7 +323,7 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         .filter(|j| state(&j.dir, spec.steps) != State::Done)
         .collect();
     eprintln!(
-        "fulcrum experiment: {} in {}: {} arms x {} seeds, {} env steps each; {} to run, {} at a time on {} cores each",
+        "fulcrum experiment: {} in {}: {} arms x {} seeds, {} env steps each; {} to run, {} at a time on {} core{} each",
         world_name,
         dir.display(),
         arms.len(),
@@ -331,12 +331,13 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         spec.steps,
         todo.len(),
         parallel.min(todo.len().max(1)),
-        share
+        share,
+        if share == 1 { "" } else { "s" }
     );
     let failed = schedule(&spec, &jobs, &todo, &cpus, parallel, share)?;
 
-    let summary = aggregate(&spec, &arms, &jobs, a.threshold, a.smooth, &dir)?;
-    print!("{}", summary.markdown);
+    let markdown = aggregate(&spec, &arms, &jobs, a.threshold, a.smooth, &dir)?;
+    print!("{markdown}");
     eprintln!(
         "summary: {}\nplots: {} {}",
         dir.join("summary.md").display(),
@@ -710,12 +711,6 @@ struct Summary {
     comparisons: Vec<Comparison>,
 }
 
-/// What [`aggregate`] wrote.
-pub struct Written {
-    /// The Markdown table.
-    pub markdown: String,
-}
-
 /// Reads the finished runs of `jobs`, writes summary.{md,json} and the plots.
 fn aggregate(
     spec: &Spec,
@@ -724,7 +719,7 @@ fn aggregate(
     threshold: f64,
     smooth: usize,
     dir: &Path,
-) -> Result<Written> {
+) -> Result<String> {
     let g = stats::grid(spec.steps as f64, GRID);
     let mut out = Vec::new();
     let mut censored: BTreeMap<String, Vec<f64>> = BTreeMap::new();
@@ -830,7 +825,7 @@ fn aggregate(
     crate::plot::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     draw(&summary, dir)?;
-    Ok(Written { markdown })
+    Ok(markdown)
 }
 
 fn steps_text(x: f64) -> String {
