@@ -301,3 +301,44 @@ fn an_interrupted_experiment_resumes_without_rerunning_finished_runs() {
     assert_eq!(s["arms"][0]["finished"], 2);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_beta_sweep_runs_one_empowerment_arm_per_beta() {
+    let dir = exp_dir("sweep");
+    let out = fulcrum()
+        .args(["experiment", "room", "--seeds", "1", "--arms", "baseline"])
+        .args(["--beta-sweep", "0.001,0.05", "--envs-per-actor", "4"])
+        .args(["--steps", "1280", "--out"])
+        .arg(&dir)
+        .args(["--", "--steps-per-chunk", "32"])
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+    let names: Vec<&str> = s["arms"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|a| a["name"].as_str().unwrap())
+        .collect();
+    assert_eq!(names, ["baseline", "beta-0.001", "beta-0.05"]);
+    // Each arm's run was trained with its own beta (the run's resolved config.toml).
+    for (arm, beta, emp) in [
+        ("baseline", "0.0", "false"),
+        ("beta-0.001", "0.001", "true"),
+        ("beta-0.05", "0.05", "true"),
+    ] {
+        let cfg =
+            std::fs::read_to_string(dir.join(format!("runs/{arm}/seed-1/config.toml"))).unwrap();
+        assert!(cfg.contains(&format!("beta = {beta}\n")), "{arm}: {cfg}");
+        assert!(
+            cfg.contains(&format!("empowerment = {emp}\n")),
+            "{arm}: {cfg}"
+        );
+        let rows = read_metrics(&dir.join(format!("runs/{arm}/seed-1/metrics.csv"))).unwrap();
+        assert_eq!(rows.last().unwrap().env_steps, 1280);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
