@@ -16,6 +16,8 @@ pub mod env;
 pub mod generate;
 /// A fast hasher for state-keyed maps.
 pub mod hash;
+/// Intrinsic reward forms (additive, potential-based shaping, count novelty).
+pub mod intrinsic;
 /// Shared-memory message layouts and service names.
 pub mod msg;
 /// World files: parsing and validation with file:line:col errors.

@@ -1,0 +1,104 @@
+//! The intrinsic reward forms on hand-made transitions; expected values are worked out
+//! by hand in the comments (gamma = 0.99).
+
+use fulcrum_shared::intrinsic::{bonus, chunk_bonus, Intrinsic};
+
+const G: f32 = 0.99;
+
+fn close(a: f32, b: f32) -> bool {
+    (a - b).abs() < 1e-6
+}
+
+#[test]
+fn each_form_on_single_transitions() {
+    // s_t with E = 1 -> s_{t+1} with E = 1 (standing on a beacon).
+    assert_eq!(bonus(Intrinsic::Additive, G, 1.0, 1.0, false), 1.0);
+    assert!(close(
+        bonus(Intrinsic::Potential, G, 1.0, 1.0, false),
+        -0.01
+    ));
+    // 0 -> 1 (reaching the beacon): the potential pays 0.99.
+    assert!(close(bonus(Intrinsic::Potential, G, 0.0, 1.0, false), 0.99));
+    // 1 -> terminal: the terminal potential is 0 whatever E the service gives it.
+    assert!(close(bonus(Intrinsic::Potential, G, 1.0, 2.0, true), -1.0));
+    assert_eq!(bonus(Intrinsic::Additive, G, 1.0, 2.0, true), 2.0);
+    // Counts 1, 4, 16 -> 1, 1/2, 1/4.
+    for (n, b) in [(1.0, 1.0), (4.0, 0.5), (16.0, 0.25)] {
+        assert!(close(bonus(Intrinsic::Count, G, 0.0, n, false), b));
+    }
+    assert_eq!(bonus(Intrinsic::None, G, 1.0, 1.0, false), 0.0);
+}
+
+#[test]
+fn a_chunk_with_a_terminal_and_a_truncated_step() {
+    // Two worlds, five steps, time-major (i = 2t + e). World 0: E(s0) = 0.5 (the reset
+    // state) -> 1 -> 1 -> terminal (service says 0.7), reset -> 1 truncated, reset -> 0.
+    // World 1: E = 0 throughout, no episode end.
+    let next = [1.0, 0.0, 1.0, 0.0, 0.7, 0.0, 1.0, 0.0, 0.0, 0.0];
+    let term = [0, 0, 0, 0, 1, 0, 0, 0, 0, 0];
+    let trunc = [0, 0, 0, 0, 0, 0, 1, 0, 0, 0];
+    let mut out = [0.0f32; 10];
+
+    let mut phi = [0.5, 0.0];
+    chunk_bonus(
+        Intrinsic::Potential,
+        G,
+        &next,
+        &term,
+        &trunc,
+        &mut phi,
+        0.5,
+        &mut out,
+    );
+    // World 0: 0.99*1 - 0.5 = 0.49; 0.99*1 - 1 = -0.01; terminal: 0 - 1 = -1;
+    // after the reset: 0.99*1 - 0.5 = 0.49 (truncated keeps the state's own potential);
+    // after the next reset: 0.99*0 - 0.5 = -0.5. World 1: 0 everywhere.
+    let want0 = [0.49, -0.01, -1.0, 0.49, -0.5];
+    for (t, w) in want0.iter().enumerate() {
+        assert!(close(out[2 * t], *w), "t = {t}: {} != {w}", out[2 * t]);
+        assert_eq!(out[2 * t + 1], 0.0);
+    }
+    // World 0's potential now: E of its current state, 0 (the last s_{t+1}).
+    assert_eq!(phi, [0.0, 0.0]);
+    // The terminated episode's discounted shaping telescopes to -E(s0) = -0.5.
+    let sum = want0[0] + G * want0[1] + G * G * want0[2];
+    assert!(close(sum, -0.5), "{sum}");
+
+    let mut phi = [0.5, 0.0];
+    chunk_bonus(
+        Intrinsic::Additive,
+        G,
+        &next,
+        &term,
+        &trunc,
+        &mut phi,
+        0.5,
+        &mut out,
+    );
+    assert_eq!(out, next);
+
+    let counts = [1.0, 1.0, 4.0, 2.0, 16.0, 3.0, 1.0, 4.0, 25.0, 5.0];
+    let mut phi = [0.0, 0.0];
+    chunk_bonus(
+        Intrinsic::Count,
+        G,
+        &counts,
+        &term,
+        &trunc,
+        &mut phi,
+        0.0,
+        &mut out,
+    );
+    for (o, n) in out.iter().zip(counts) {
+        assert!(close(*o, 1.0 / f32::sqrt(n)));
+    }
+}
+
+#[test]
+fn forms_parse_and_print() {
+    for f in Intrinsic::ALL {
+        assert_eq!(f.name().parse::<Intrinsic>().unwrap(), f);
+    }
+    let e = "bonus".parse::<Intrinsic>().unwrap_err();
+    assert!(e.contains("'bonus'") && e.contains("potential"), "{e}");
+}
