@@ -54,6 +54,23 @@ pub enum Command {
         #[arg(long)]
         batch: usize,
     },
+    /// (test helper) count visits of one state at a running service, printing each
+    /// count the service answers.
+    #[command(hide = true, name = "__visit")]
+    Visit {
+        /// Service namespace.
+        #[arg(long)]
+        namespace: String,
+        /// World the service serves.
+        #[arg(long)]
+        world: String,
+        /// The state, as a description.
+        #[arg(long)]
+        state: String,
+        /// Visits, one request each.
+        #[arg(long)]
+        times: usize,
+    },
     /// (bench helper) echo Unix datagrams on a socket path until told to stop.
     #[command(hide = true, name = "__pingpong")]
     PingPong {
@@ -287,9 +304,18 @@ pub struct TrainArgs {
     /// Weight of the intrinsic reward E (default: the world's [empowerment] beta).
     #[arg(long, allow_negative_numbers = true)]
     pub beta: Option<f64>,
-    /// The baseline: no empowerment service, reward R only.
+    /// The baseline: no empowerment service, reward R only (= `--intrinsic none`).
     #[arg(long)]
     pub no_empowerment: bool,
+    /// The intrinsic reward form: additive (R + beta E(s'), the paper's), potential
+    /// (R + beta (gamma E(s') - E(s))), count (R + beta / sqrt N(s')) or none
+    /// [default: additive].
+    #[arg(long, value_parser = ["additive", "potential", "count", "none"])]
+    pub intrinsic: Option<String>,
+    /// switch: the held / not-held horizons of the world file (the paper's); fixed: the
+    /// not-held horizon everywhere [default: switch].
+    #[arg(long, value_parser = ["switch", "fixed"])]
+    pub horizon_mode: Option<String>,
     /// Seed of weights, sampling, minibatches and worlds.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -368,10 +394,15 @@ pub struct ExperimentArgs {
     /// Beta of the empowerment arm [default: the world's].
     #[arg(long, allow_negative_numbers = true)]
     pub beta: Option<f64>,
-    /// Arms, comma separated: baseline (no empowerment), empowerment.
+    /// Arms, comma separated: baseline (no intrinsic reward), empowerment (the
+    /// --intrinsic form), or a form by name: none, additive, potential, count.
     #[arg(long, default_value = "baseline,empowerment")]
     pub arms: String,
-    /// Also one empowerment arm per beta, comma separated (named beta-<b>).
+    /// The intrinsic reward form of the `empowerment` arm and of --beta-sweep's arms.
+    #[arg(long, default_value = "additive", value_parser = ["additive", "potential", "count"])]
+    pub intrinsic: String,
+    /// Also one arm per beta, comma separated, with the --intrinsic form (named
+    /// beta-<b> for additive, <form>-beta-<b> otherwise).
     #[arg(long, allow_hyphen_values = true)]
     pub beta_sweep: Option<String>,
     /// Experiment directory [default: experiments/<world>-<time>]; the same command

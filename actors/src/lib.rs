@@ -32,6 +32,7 @@ use fulcrum_learner::config::RunConfig;
 use fulcrum_learner::local::shape_for;
 use fulcrum_learner::net::Net;
 use fulcrum_learner::ppo::Adam;
+use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::msg::{item, MAX_BATCH, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{
     self, put_f32, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames, ENV_BYTES,
@@ -147,6 +148,12 @@ pub fn run_actor(
         .create()
         .map_err(|e| ipc("listener")(&e))?;
 
+    let form = cfg.form();
+    let ask = if form == Intrinsic::Count {
+        Ask::Visit
+    } else {
+        Ask::Lookup
+    };
     let mut client = if cfg.empowerment {
         match connect(namespace, world, stop)? {
             Some(c) => Some(c),
@@ -179,6 +186,44 @@ pub fn run_actor(
         );
     }
 
+    // Potential shaping needs E(s_t) of each world's current state and of the initial
+    // state (where worlds reset); both come from the service, so a resumed actor gets
+    // the same values as the one that stopped.
+    let mut phi = vec![0.0f32; m];
+    let mut phi_reset = 0.0f32;
+    if form == Intrinsic::Potential {
+        let mut ask_states: Vec<State> = envs.iter().map(|r| r.episode.state).collect();
+        ask_states.push(world.reset().state);
+        let mut vals = vec![0.0f32; ask_states.len()];
+        while let Some(cl) = client.as_mut() {
+            let (mut sent, mut got) = (0, 0);
+            let mut result = Ok(());
+            while got < ask_states.len() && result.is_ok() {
+                result = pump(
+                    cl,
+                    ask,
+                    &ask_states,
+                    &mut sent,
+                    &mut got,
+                    &mut vals,
+                    MAX_BATCH,
+                );
+            }
+            match result {
+                Ok(()) => break,
+                Err(e) => {
+                    tracing::warn!(actor = id.index, "empowerment service: {e}");
+                    match connect(namespace, world, stop)? {
+                        Some(new) => *cl = new,
+                        None => return Ok(()),
+                    }
+                }
+            }
+        }
+        phi.copy_from_slice(&vals[..m]);
+        phi_reset = vals[m];
+    }
+
     let mut cur_g = vec![0u8; m * c];
     let mut cur_f = vec![0u8; m * f];
     for (e, r) in envs.iter().enumerate() {
@@ -192,6 +237,7 @@ pub fn run_actor(
     let mut per_version = 0u64;
     let mut next_states: Vec<State> = Vec::with_capacity(n);
     let mut intrinsic = vec![0.0f32; n];
+    let mut bonus = vec![0.0f32; n];
     let mut finals: Vec<(usize, Vec<u8>, Vec<u8>)> = Vec::new();
     let sub_batch = MAX_BATCH.min(n.div_ceil(MAX_IN_FLIGHT).max(m));
     let (mut acts, mut lps, mut vals) = (vec![0u8; m], vec![0.0f32; m], vec![0.0f32; m]);
@@ -281,6 +327,7 @@ pub fn run_actor(
                     if ready >= sub_batch || (t + 1 == t_len && ready > 0) {
                         if let Err(e) = pump(
                             cl,
+                            ask,
                             &next_states,
                             &mut sent_states,
                             &mut answered,
@@ -316,6 +363,7 @@ pub fn run_actor(
                     while answered < n {
                         if let Err(e) = pump(
                             cl,
+                            ask,
                             &next_states,
                             &mut sent_states,
                             &mut answered,
@@ -341,18 +389,34 @@ pub fn run_actor(
                 failed = false;
             }
         }
-        // Intrinsic rewards into the chunk; intrinsic returns of the episodes that
-        // ended (they may have begun in earlier chunks: `carry`).
+        // Intrinsic rewards into the chunk (the form's b_t from the service's values);
+        // intrinsic returns of the episodes that ended (they may have begun in earlier
+        // chunks: `carry`).
         {
             let buf: &mut [u8] = sample_mut.payload_mut();
             let term = layout.range(Section::Terminated).start;
             let trunc = layout.range(Section::Truncated).start;
             let ir = layout.range(Section::IntReward);
+            if form.uses_empowerment() {
+                h.e_positive = intrinsic.iter().filter(|&&v| v > 0.0).count() as u32;
+            }
+            let shaping = fulcrum_shared::intrinsic::Shaping {
+                form,
+                gamma: cfg.ppo.gamma,
+                phi_reset,
+            };
+            shaping.chunk(
+                &intrinsic,
+                &buf[term..term + n],
+                &buf[trunc..trunc + n],
+                &mut phi,
+                &mut bonus,
+            );
             let mut acc = carry.clone();
             for t in 0..t_len {
                 for (e, a) in acc.iter_mut().enumerate() {
                     let i = t * m + e;
-                    let val = if client.is_some() { intrinsic[i] } else { 0.0 };
+                    let val = bonus[i];
                     put_f32(&mut buf[ir.clone()], i, val);
                     h.int_reward_sum += val as f64;
                     *a += val;
@@ -398,6 +462,7 @@ pub fn run_actor(
 /// sent or the pipe is full; then collect one answer.
 fn pump(
     cl: &mut Client,
+    ask: Ask,
     states: &[State],
     sent: &mut usize,
     answered: &mut usize,
@@ -406,7 +471,7 @@ fn pump(
 ) -> Result<(), ClientError> {
     while *sent < states.len() && cl.in_flight() < MAX_IN_FLIGHT {
         let end = (*sent + sub_batch).min(states.len());
-        cl.submit(Ask::Lookup, &states[*sent..end])?;
+        cl.submit(ask, &states[*sent..end])?;
         *sent = end;
     }
     if cl.in_flight() > 0 && (cl.in_flight() >= MAX_IN_FLIGHT || *sent == states.len()) {

@@ -7,7 +7,9 @@
 //!   where j is held and `h_u` elsewhere;
 //! - QUERY: any tool, object set and horizon, computed on demand and cached within a
 //!   memory bound;
-//! - DESCRIBE: the world and the configuration.
+//! - DESCRIBE: the world and the configuration;
+//! - VISIT: count one visit of each state and answer its visit count so far, shared by
+//!   all clients (the count-based novelty bonus of `train --intrinsic count`).
 //!
 //! Wake-ups: pub/sub and request-response ports have no file descriptor, so requests
 //! and responses are paired with event services (PITFALLS 4). Each side first spins a
@@ -236,6 +238,8 @@ pub struct Tables<'w> {
     equipped: Vec<f32>,
     cache: VecDeque<((i32, u32, u32), Vec<f32>)>,
     describe: Describe,
+    /// VISIT counts per state id (allocated at the first VISIT).
+    visits: Vec<u32>,
 }
 
 impl<'w> Tables<'w> {
@@ -260,6 +264,7 @@ impl<'w> Tables<'w> {
             cfg,
             cache: VecDeque::new(),
             describe,
+            visits: Vec::new(),
         })
     }
 
@@ -295,6 +300,24 @@ impl<'w> Tables<'w> {
                                 &self.unequipped
                             };
                             out.values[i] = t[id as usize];
+                        }
+                        None => out.item_status[i] = item::NOT_IN_SPACE,
+                    }
+                }
+                out.count = n as u32;
+            }
+            kind::VISIT => {
+                let space = &self.engine.space;
+                if self.visits.is_empty() {
+                    self.visits = vec![0; space.len()];
+                }
+                for i in 0..n {
+                    let s = State::from_bytes(&req.states[i]);
+                    match space.id(&s) {
+                        Some(id) => {
+                            let c = &mut self.visits[id as usize];
+                            *c = c.saturating_add(1);
+                            out.values[i] = *c as f32;
                         }
                         None => out.item_status[i] = item::NOT_IN_SPACE,
                     }
@@ -619,6 +642,8 @@ pub struct Batch {
 pub enum Ask {
     /// The service's configured table.
     Lookup,
+    /// Count a visit of each state; the answer is its visit count so far (as `f32`).
+    Visit,
     /// Any tool (index or [`TOOL_ALL`]), object mask and horizon.
     Query {
         /// Tool index or [`TOOL_ALL`].
@@ -731,6 +756,7 @@ impl Client {
         }
         match ask {
             Ask::Lookup => self.send(kind::LOOKUP, states, 0, 0, 0),
+            Ask::Visit => self.send(kind::VISIT, states, 0, 0, 0),
             Ask::Query {
                 tool,
                 objects,

@@ -41,8 +41,15 @@ pub struct RunConfig {
     pub hidden: usize,
     /// Intrinsic reward weight (0 with `empowerment = false`).
     pub beta: f64,
-    /// Whether actors ask the empowerment service for E.
+    /// Whether the run has an empowerment service (every intrinsic form but `none`).
     pub empowerment: bool,
+    /// The intrinsic reward form ([`fulcrum_shared::intrinsic::Intrinsic`]): `none`,
+    /// `additive`, `potential` or `count`.
+    #[serde(default = "default_intrinsic")]
+    pub intrinsic: String,
+    /// `switch` (the held / not-held horizons) or `fixed` (one horizon everywhere).
+    #[serde(default = "default_horizon_mode")]
+    pub horizon_mode: String,
     /// Tool of the channel (`auto`, a kind, or `all`).
     pub tool: String,
     /// Objects of interest, comma separated (empty = the world's default).
@@ -59,7 +66,24 @@ pub struct RunConfig {
     pub ppo: PpoConfig,
 }
 
+fn default_intrinsic() -> String {
+    "additive".into()
+}
+
+fn default_horizon_mode() -> String {
+    "switch".into()
+}
+
 impl RunConfig {
+    /// The intrinsic reward form (`none` without a service, whatever the field says).
+    pub fn form(&self) -> fulcrum_shared::intrinsic::Intrinsic {
+        use fulcrum_shared::intrinsic::Intrinsic;
+        if !self.empowerment {
+            return Intrinsic::None;
+        }
+        self.intrinsic.parse().unwrap_or(Intrinsic::Additive)
+    }
+
     /// Env steps per update.
     pub fn batch(&self) -> usize {
         self.actors * self.envs_per_actor * self.steps_per_chunk
@@ -129,6 +153,32 @@ impl RunConfig {
                 return Err(why);
             }
         }
+        let form: fulcrum_shared::intrinsic::Intrinsic = self.intrinsic.parse()?;
+        if form.uses_service() != self.empowerment {
+            return Err(format!(
+                "--intrinsic {form} {} an empowerment service",
+                if self.empowerment {
+                    "does not use"
+                } else {
+                    "needs"
+                }
+            ));
+        }
+        match self.horizon_mode.as_str() {
+            "switch" => {}
+            "fixed" if self.horizon_unequipped == self.horizon_equipped => {}
+            "fixed" => {
+                return Err(format!(
+                    "--horizon-mode fixed uses one horizon, but --horizon-unequipped {} and --horizon-equipped {} differ",
+                    self.horizon_unequipped, self.horizon_equipped
+                ))
+            }
+            other => {
+                return Err(format!(
+                    "unknown --horizon-mode '{other}' (modes: switch, fixed)"
+                ))
+            }
+        }
         for (h, which) in [
             (self.horizon_unequipped, "--horizon-unequipped"),
             (self.horizon_equipped, "--horizon-equipped"),
@@ -182,6 +232,8 @@ mod tests {
             hidden: 64,
             beta: 0.0,
             empowerment: false,
+            intrinsic: "none".into(),
+            horizon_mode: "switch".into(),
             tool: "auto".into(),
             objects: String::new(),
             horizon_unequipped: 2,
@@ -212,9 +264,22 @@ mod tests {
         let mut bad = c.clone();
         bad.actors = 0;
         assert!(bad.check().unwrap_err().contains("--actors"));
-        let mut bad = c;
+        let mut bad = c.clone();
         bad.empowerment = true;
+        bad.intrinsic = "potential".into();
         bad.horizon_equipped = 0;
         assert!(bad.check().unwrap_err().contains("--horizon-equipped"));
+        let mut bad = c.clone();
+        bad.intrinsic = "potential".into();
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .contains("needs an empowerment service"));
+        let mut bad = c.clone();
+        bad.intrinsic = "novelty".into();
+        assert!(bad.check().unwrap_err().contains("'novelty'"));
+        let mut bad = c;
+        bad.horizon_mode = "fixed".into();
+        assert!(bad.check().unwrap_err().contains("differ"));
     }
 }

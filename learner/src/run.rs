@@ -59,7 +59,13 @@ pub const METRICS_COLUMNS: &[&str] = &[
     "dropped_chunks",
     "actor_restarts",
     "wall_s",
+    "e_positive_frac",
+    "first_pickup_step",
 ];
+
+/// Columns of `metrics.csv` files written before `e_positive_frac` and
+/// `first_pickup_step` (still read).
+const LEGACY_COLUMNS: usize = 19;
 
 /// One row of `metrics.csv`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -94,6 +100,12 @@ pub struct MetricsRow {
     pub actor_restarts: u64,
     /// Wall time of the run so far (seconds, over all resumes).
     pub wall_s: f64,
+    /// Fraction of this update's transitions whose E(s_{t+1}) > 0 (NaN for forms that
+    /// do not look E up).
+    pub e_positive_frac: f64,
+    /// Env steps at the end of the first update in which an episode with a tool pick-up
+    /// ended (None before that).
+    pub first_pickup_step: Option<u64>,
 }
 
 impl MetricsRow {
@@ -126,6 +138,10 @@ impl MetricsRow {
             self.dropped_chunks.to_string(),
             self.actor_restarts.to_string(),
             f(self.wall_s),
+            f(self.e_positive_frac),
+            self.first_pickup_step
+                .map(|s| s.to_string())
+                .unwrap_or_default(),
         ]
         .join(",")
     }
@@ -133,7 +149,7 @@ impl MetricsRow {
     /// Parse a CSV line written by [`MetricsRow::csv`] (empty fields are NaN).
     pub fn parse(line: &str) -> Option<MetricsRow> {
         let v: Vec<&str> = line.trim_end().split(',').collect();
-        if v.len() != METRICS_COLUMNS.len() {
+        if v.len() != METRICS_COLUMNS.len() && v.len() != LEGACY_COLUMNS {
             return None;
         }
         let f = |i: usize| -> Option<f64> {
@@ -166,6 +182,11 @@ impl MetricsRow {
             dropped_chunks: u(16)?,
             actor_restarts: u(17)?,
             wall_s: f(18)?,
+            e_positive_frac: if v.len() > 19 { f(19)? } else { f64::NAN },
+            first_pickup_step: match v.get(20) {
+                None | Some(&"") => None,
+                Some(_) => Some(u(20)?),
+            },
         })
     }
 }
@@ -242,6 +263,8 @@ struct Counters {
     episodes: u64,
     dropped: u64,
     wall_s: f64,
+    /// Env steps at the first update with a pick-up (0 = none yet).
+    first_pickup: u64,
 }
 
 fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
@@ -273,6 +296,7 @@ pub fn run_learner(
         ctr.env_steps = get("env_steps");
         ctr.episodes = get("episodes");
         ctr.dropped = get("dropped_chunks");
+        ctr.first_pickup = get("first_pickup_step");
         ctr.wall_s = extra.floats.get("wall_s").copied().unwrap_or(0.0);
         if let Some(r) = extra
             .blobs
@@ -420,7 +444,7 @@ pub fn run_learner(
         let mut row = MetricsRow::default();
         let (mut ext_sum, mut int_ret_sum, mut len_sum, mut int_sum, mut lag_sum) =
             (0.0, 0.0, 0.0, 0.0, 0.0);
-        let (mut episodes, mut successes, mut pickups) = (0u64, 0u64, 0u64);
+        let (mut episodes, mut successes, mut pickups, mut e_positive) = (0u64, 0u64, 0u64, 0u64);
         let mut ext = vec![0.0f32; n];
         let mut int = vec![0.0f32; n];
         let mut tv = vec![0.0f32; n];
@@ -470,6 +494,7 @@ pub fn run_learner(
             episodes += c.h.episodes as u64;
             successes += c.h.successes as u64;
             pickups += c.h.pickups as u64;
+            e_positive += c.h.e_positive as u64;
             ext_sum += c.h.ext_return_sum;
             int_ret_sum += c.h.int_return_sum;
             len_sum += c.h.length_sum;
@@ -522,6 +547,15 @@ pub fn run_learner(
         row.intrinsic_mean = int_sum / total as f64;
         row.episode_length = per_ep(len_sum);
         row.pickup_rate = per_ep(pickups as f64);
+        row.e_positive_frac = if cfg.form().uses_empowerment() {
+            e_positive as f64 / total as f64
+        } else {
+            f64::NAN
+        };
+        if ctr.first_pickup == 0 && pickups > 0 {
+            ctr.first_pickup = ctr.env_steps;
+        }
+        row.first_pickup_step = (ctr.first_pickup > 0).then_some(ctr.first_pickup);
         row.sps = total as f64 / now.duration_since(last).as_secs_f64().max(1e-9);
         row.policy_lag = lag_sum / batch.len() as f64;
         row.dropped_chunks = ctr.dropped;
@@ -589,6 +623,9 @@ fn save(
     extra.counters.insert("update".into(), ctr.update);
     extra.counters.insert("env_steps".into(), ctr.env_steps);
     extra.counters.insert("episodes".into(), ctr.episodes);
+    extra
+        .counters
+        .insert("first_pickup_step".into(), ctr.first_pickup);
     extra.counters.insert("dropped_chunks".into(), ctr.dropped);
     extra.floats.insert("wall_s".into(), ctr.wall_s);
     extra
@@ -678,11 +715,29 @@ mod tests {
             dropped_chunks: 2,
             actor_restarts: 1,
             wall_s: 9.75,
+            e_positive_frac: 0.375,
+            first_pickup_step: Some(2048),
         };
         let line = r.csv();
         assert_eq!(line.split(',').count(), METRICS_COLUMNS.len());
         let back = MetricsRow::parse(&line).unwrap();
         assert!(back.intrinsic_return.is_nan());
+        assert_eq!(back.first_pickup_step, Some(2048));
         assert_eq!(back.csv(), line);
+        // No pick-up yet: an empty field.
+        let none = MetricsRow {
+            first_pickup_step: None,
+            ..r
+        };
+        assert!(none.csv().ends_with(",0.375,"));
+        assert_eq!(
+            MetricsRow::parse(&none.csv()).unwrap().first_pickup_step,
+            None
+        );
+        // Rows of files written before the last two columns still parse.
+        let legacy: Vec<&str> = line.split(',').take(19).collect();
+        let old = MetricsRow::parse(&legacy.join(",")).unwrap();
+        assert_eq!(old.wall_s, 9.75);
+        assert!(old.e_positive_frac.is_nan() && old.first_pickup_step.is_none());
     }
 }

@@ -104,27 +104,38 @@ pub fn bonus(
     }
 }
 
-/// b_t for a chunk laid out time-major (index t * m + e), from the service's values for
-/// each s_{t+1} (`next`) and the termination/truncation flags.
-///
-/// `phi[e]` holds E(s_t) of world e's current state on entry (the first step of the
-/// chunk) and of its current state on return; `phi_reset` is E of the initial state, the
-/// potential after an episode ends (worlds reset to it).
-pub fn chunk_bonus(
-    form: Intrinsic,
-    gamma: f32,
-    next: &[f32],
-    terminated: &[u8],
-    truncated: &[u8],
-    phi: &mut [f32],
-    phi_reset: f32,
-    out: &mut [f32],
-) {
-    let m = phi.len();
-    for (i, b) in out.iter_mut().enumerate() {
-        let e = i % m;
-        let ended = terminated[i] == 1 || truncated[i] == 1;
-        *b = bonus(form, gamma, phi[e], next[i], terminated[i] == 1);
-        phi[e] = if ended { phi_reset } else { next[i] };
+/// The intrinsic reward of one run: its form, gamma, and E of the initial state (the
+/// potential of every world after an episode ends and the world resets).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shaping {
+    /// The form.
+    pub form: Intrinsic,
+    /// The discount of the run's returns.
+    pub gamma: f32,
+    /// E of the initial state (potential only).
+    pub phi_reset: f32,
+}
+
+impl Shaping {
+    /// b_t for a chunk laid out time-major (index t * m + e), from the service's values
+    /// for each s_{t+1} (`next`) and the termination/truncation flags.
+    ///
+    /// `phi[e]` holds E(s_t) of world e's current state on entry (the first step of the
+    /// chunk) and of its current state on return.
+    pub fn chunk(
+        &self,
+        next: &[f32],
+        terminated: &[u8],
+        truncated: &[u8],
+        phi: &mut [f32],
+        out: &mut [f32],
+    ) {
+        let m = phi.len();
+        for (i, b) in out.iter_mut().enumerate() {
+            let e = i % m;
+            let ended = terminated[i] == 1 || truncated[i] == 1;
+            *b = bonus(self.form, self.gamma, phi[e], next[i], terminated[i] == 1);
+            phi[e] = if ended { self.phi_reset } else { next[i] };
+        }
     }
 }

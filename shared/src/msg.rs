@@ -30,6 +30,9 @@ pub mod kind {
     pub const QUERY: u32 = 2;
     /// The world and the service's configuration.
     pub const DESCRIBE: u32 = 3;
+    /// Count one visit of each state and answer its visit count so far (this visit
+    /// included), shared by every client: the count-based novelty bonus.
+    pub const VISIT: u32 = 4;
 }
 
 /// Whole-request statuses ([`EmpResponse::status`]).

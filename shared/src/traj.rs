@@ -84,13 +84,18 @@ pub struct ChunkHeader {
     pub successes: u32,
     /// Episodes in which a tool was picked up.
     pub pickups: u32,
+    /// Transitions whose E(s_{t+1}) > 0 (forms that look E up; 0 otherwise).
+    pub e_positive: u32,
+    /// Padding (keeps the sums 8-byte aligned).
+    pub reserved: u32,
     /// Sum over ended episodes of the extrinsic return.
     pub ext_return_sum: f64,
     /// Sum over ended episodes of the intrinsic return (sum of E, bits).
     pub int_return_sum: f64,
     /// Sum over ended episodes of their length.
     pub length_sum: f64,
-    /// Sum over all N transitions of E(s_{t+1}).
+    /// Sum over all N transitions of the intrinsic term b_t (before beta; E(s_{t+1})
+    /// for the additive form).
     pub int_reward_sum: f64,
     /// Payload bytes.
     pub len: u64,

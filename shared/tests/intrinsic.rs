@@ -1,7 +1,15 @@
 //! The intrinsic reward forms on hand-made transitions; expected values are worked out
 //! by hand in the comments (gamma = 0.99).
 
-use fulcrum_shared::intrinsic::{bonus, chunk_bonus, Intrinsic};
+use fulcrum_shared::intrinsic::{bonus, Intrinsic, Shaping};
+
+fn shaping(form: Intrinsic, phi_reset: f32) -> Shaping {
+    Shaping {
+        form,
+        gamma: G,
+        phi_reset,
+    }
+}
 
 const G: f32 = 0.99;
 

@@ -590,7 +590,7 @@ fn query_service(
     }
     let horizon_of = |s: &State| match ask {
         Ask::Query { horizon, .. } => horizon,
-        Ask::Lookup => {
+        Ask::Lookup | Ask::Visit => {
             if d.tool >= 0 && s.holds(d.tool as usize) {
                 d.horizon_equipped
             } else {

@@ -83,16 +83,29 @@ struct TrainOnly {
 /// The arms asked for: `--arms` (baseline, empowerment) then one per `--beta-sweep` value.
 fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
     let mut out: Vec<Arm> = Vec::new();
+    // The additive form is train's default: its arms name only the beta, as before
+    // there were other forms (so earlier experiment directories still resume).
+    let with_beta = |form: &str, beta: Option<f64>| {
+        let mut v = if form == "additive" {
+            Vec::new()
+        } else {
+            vec!["--intrinsic".to_string(), form.to_string()]
+        };
+        if let Some(b) = beta {
+            v.extend(["--beta".into(), b.to_string()]);
+        }
+        v
+    };
+    let form = a.intrinsic.as_str();
     for name in a.arms.split(',').map(str::trim).filter(|s| !s.is_empty()) {
         let args = match name {
             "baseline" => vec!["--no-empowerment".to_string()],
-            "empowerment" => match a.beta {
-                Some(b) => vec!["--beta".into(), b.to_string()],
-                None => Vec::new(),
-            },
+            "none" => vec!["--intrinsic".to_string(), "none".to_string()],
+            "empowerment" => with_beta(form, a.beta),
+            "additive" | "potential" | "count" => with_beta(name, a.beta),
             other => {
                 return bad(format!(
-                    "--arms: unknown arm '{other}' (arms: baseline, empowerment; for betas use --beta-sweep)"
+                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, potential, count; for betas use --beta-sweep)"
                 ))
             }
         };
@@ -108,8 +121,12 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
                 Err(_) => return bad(format!("--beta-sweep: '{b}' is not a number")),
             };
             out.push(Arm {
-                name: format!("beta-{v}"),
-                args: vec!["--beta".into(), v.to_string()],
+                name: if form == "additive" {
+                    format!("beta-{v}")
+                } else {
+                    format!("{form}-beta-{v}")
+                },
+                args: with_beta(form, Some(v)),
             });
         }
     }

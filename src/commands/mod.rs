@@ -67,6 +67,12 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
             batch,
         } => bench::client_process(&namespace, &world, seconds, batch),
         Command::PingPong { path } => bench::pingpong_echo(&path),
+        Command::Visit {
+            namespace,
+            world,
+            state,
+            times,
+        } => serve::visit_process(&namespace, &world, &state, times),
     }
 }
 

@@ -90,3 +90,24 @@ pub fn run(a: &ServeArgs) -> Result<()> {
     );
     Ok(())
 }
+
+/// `fulcrum __visit`: count `times` visits of one state, one request each, and print
+/// every count the service answers (a test of counts shared between processes).
+pub fn visit_process(ns: &str, world: &str, state: &str, times: usize) -> Result<()> {
+    use fulcrum_empowerment::service::{Ask, Client};
+    let w = super::world(world)?;
+    let s = w.parse_state(state)?;
+    let mut c = Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
+    let mut out = String::new();
+    for _ in 0..times {
+        c.submit(Ask::Visit, std::slice::from_ref(&s))?;
+        let b = c.recv()?;
+        anyhow::ensure!(
+            b.status.first() == Some(&fulcrum_shared::msg::item::OK),
+            "the service refused the state"
+        );
+        out.push_str(&format!("{}\n", b.values[0]));
+    }
+    print!("{out}");
+    Ok(())
+}

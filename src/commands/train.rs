@@ -25,6 +25,7 @@ use anyhow::{Context, Result};
 use fulcrum_learner::config::RunConfig;
 use fulcrum_learner::ppo::PpoConfig;
 use fulcrum_learner::run::{read_metrics, run_learner, LearnerExit, RunPaths};
+use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::World;
 
 use crate::cli::{ChildArgs, TrainArgs};
@@ -104,7 +105,16 @@ pub fn run(a: &TrainArgs) -> Result<()> {
         cfg.updates(),
         cfg.batch(),
         if cfg.empowerment {
-            format!(", beta {}", cfg.beta)
+            format!(
+                ", {} intrinsic reward, beta {}{}",
+                cfg.intrinsic,
+                cfg.beta,
+                if cfg.horizon_mode == "fixed" {
+                    ", one horizon"
+                } else {
+                    ""
+                }
+            )
         } else {
             ", no empowerment".into()
         },
@@ -170,6 +180,8 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         let changed: Vec<&str> = [
             (a.beta.is_some(), "--beta"),
             (a.no_empowerment, "--no-empowerment"),
+            (a.intrinsic.is_some(), "--intrinsic"),
+            (a.horizon_mode.is_some(), "--horizon-mode"),
             (a.seed.is_some(), "--seed"),
             (a.actors.is_some(), "--actors"),
             (a.envs_per_actor.is_some(), "--envs-per-actor"),
@@ -262,6 +274,18 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         } else {
             spec.clone()
         };
+    if a.no_empowerment && a.intrinsic.as_deref().is_some_and(|f| f != "none") {
+        return bad(format!(
+            "--no-empowerment and --intrinsic {} contradict each other: choose one",
+            a.intrinsic.as_deref().unwrap_or_default()
+        ));
+    }
+    let form: Intrinsic = match (&a.intrinsic, a.no_empowerment) {
+        (_, true) => Intrinsic::None,
+        (Some(f), false) => f.parse().map_err(super::BadInput)?,
+        (None, false) => Intrinsic::Additive,
+    };
+    let fixed = a.horizon_mode.as_deref() == Some("fixed");
     let n = cores();
     let actors = a.actors.unwrap_or(n.saturating_sub(1).max(1));
     let seed = a.seed.unwrap_or(1);
@@ -281,16 +305,21 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         steps_per_chunk: a.steps_per_chunk.unwrap_or(128),
         learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
         hidden: a.hidden.unwrap_or(64),
-        beta: if a.no_empowerment {
+        beta: if form == Intrinsic::None {
             0.0
         } else {
             a.beta.unwrap_or(e.beta)
         },
-        empowerment: !a.no_empowerment,
+        empowerment: form.uses_service(),
+        intrinsic: form.name().into(),
+        horizon_mode: a.horizon_mode.clone().unwrap_or_else(|| "switch".into()),
         tool: a.tool.clone().unwrap_or_else(|| "default".into()),
         objects: a.objects.clone().unwrap_or_default(),
         horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
-        horizon_equipped: a.horizon_equipped.unwrap_or(e.horizon_equipped),
+        horizon_equipped: match (fixed, a.horizon_equipped) {
+            (true, None) => a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
+            (_, h) => h.unwrap_or(e.horizon_equipped),
+        },
         max_policy_lag: a.max_policy_lag.unwrap_or(0),
         checkpoint_every: a.checkpoint_every.unwrap_or(10),
         ppo: {
@@ -303,8 +332,10 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
             }
         },
     };
-    if a.no_empowerment && a.beta.is_some() {
-        return bad("--beta and --no-empowerment contradict each other: choose one");
+    if form == Intrinsic::None && a.beta.is_some() {
+        return bad(
+            "--beta and --no-empowerment (or --intrinsic none) contradict each other: choose one",
+        );
     }
     cfg.check().map_err(super::BadInput)?;
     if cfg.empowerment {

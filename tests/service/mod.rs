@@ -462,3 +462,38 @@ fn a_service_whose_output_reader_left_still_stops_cleanly() {
     assert!(out.status.success(), "{:?}: {err}", out.status);
     assert!(!err.contains("panicked"), "{err}");
 }
+
+#[test]
+fn visit_counts_are_shared_by_two_client_processes() {
+    let ns = namespace("visits");
+    let _serve = Serve::start("room", &ns, &[]);
+    let visit = || {
+        Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+            .args(["__visit", "--namespace", &ns, "--world", "room"])
+            .args(["--state", "agent=2,2", "--times", "300"])
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap()
+    };
+    // Two processes visit the same state 300 times each, at the same time.
+    let (a, b) = (visit(), visit());
+    let mut counts: Vec<u32> = Vec::new();
+    for c in [a, b] {
+        let out = c.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8(out.stdout).unwrap();
+        let mine: Vec<u32> = text.lines().map(|l| l.parse().unwrap()).collect();
+        assert_eq!(mine.len(), 300);
+        // Each process sees its counts grow.
+        assert!(mine.windows(2).all(|w| w[0] < w[1]), "{mine:?}");
+        counts.extend(mine);
+    }
+    // One counter for both: every count 1..=600 was answered exactly once.
+    counts.sort_unstable();
+    assert_eq!(counts, (1..=600).collect::<Vec<u32>>());
+}

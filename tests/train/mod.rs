@@ -541,3 +541,73 @@ fn the_whole_system_learns_the_room() {
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
+
+#[test]
+fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
+    for form in ["potential", "count", "none"] {
+        let dir = run_dir(form);
+        let d = dir.to_str().unwrap();
+        let c = train(
+            &[
+                &["room", "--actors", "2", "--steps", "4096", "--out", d][..],
+                &["--intrinsic", form],
+                SMALL,
+            ]
+            .concat(),
+        );
+        let (status, err, _) = finish(c, Duration::from_secs(120));
+        assert!(status.success(), "{form}: {err}");
+        let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
+        assert!(cfg.contains(&format!("intrinsic = \"{form}\"")), "{cfg}");
+        let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+        assert_contiguous(&rows, 16, 256);
+        for r in &rows {
+            match form {
+                // gamma E' - E lies in [-max E, max E]; the room's E is at most a few bits.
+                "potential" => {
+                    assert!(r.intrinsic_mean.abs() < 4.0, "{r:?}");
+                    assert!((0.0..=1.0).contains(&r.e_positive_frac), "{r:?}");
+                }
+                // 1 / sqrt(N) with N >= 1, and N grows: the mean is in (0, 1].
+                "count" => {
+                    assert!(r.intrinsic_mean > 0.0 && r.intrinsic_mean <= 1.0, "{r:?}");
+                    assert!(r.e_positive_frac.is_nan(), "{r:?}");
+                }
+                _ => assert_eq!(r.intrinsic_mean, 0.0),
+            }
+        }
+        if form == "count" {
+            // States are revisited by both actors: the mean bonus falls.
+            assert!(rows.last().unwrap().intrinsic_mean < rows[0].intrinsic_mean);
+        }
+        // The room's axe is next to the agent: picked up in the first updates.
+        let first = rows.iter().find_map(|r| r.first_pickup_step).unwrap();
+        assert!(first <= 4096 && first % 256 == 0, "{first}");
+        assert!(rows
+            .iter()
+            .all(|r| r.first_pickup_step.is_none_or(|s| s == first)));
+        assert_nothing_left(&namespace_of(&err));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[test]
+fn one_horizon_everywhere_with_horizon_mode_fixed() {
+    let dir = run_dir("fixed");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--steps", "1024", "--out", d][..],
+            &["--horizon-mode", "fixed", "--horizon-unequipped", "5"],
+            SMALL,
+        ]
+        .concat(),
+    );
+    let (status, err, _) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
+    let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
+    assert!(cfg.contains("horizon_unequipped = 5\n"), "{cfg}");
+    assert!(cfg.contains("horizon_equipped = 5\n"), "{cfg}");
+    assert!(cfg.contains("horizon_mode = \"fixed\""), "{cfg}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
