@@ -48,16 +48,7 @@ fn a_chunk_with_a_terminal_and_a_truncated_step() {
     let mut out = [0.0f32; 10];
 
     let mut phi = [0.5, 0.0];
-    chunk_bonus(
-        Intrinsic::Potential,
-        G,
-        &next,
-        &term,
-        &trunc,
-        &mut phi,
-        0.5,
-        &mut out,
-    );
+    shaping(Intrinsic::Potential, 0.5).chunk(&next, &term, &trunc, &mut phi, &mut out);
     // World 0: 0.99*1 - 0.5 = 0.49; 0.99*1 - 1 = -0.01; terminal: 0 - 1 = -1;
     // after the reset: 0.99*1 - 0.5 = 0.49 (truncated keeps the state's own potential);
     // after the next reset: 0.99*0 - 0.5 = -0.5. World 1: 0 everywhere.
@@ -73,30 +64,12 @@ fn a_chunk_with_a_terminal_and_a_truncated_step() {
     assert!(close(sum, -0.5), "{sum}");
 
     let mut phi = [0.5, 0.0];
-    chunk_bonus(
-        Intrinsic::Additive,
-        G,
-        &next,
-        &term,
-        &trunc,
-        &mut phi,
-        0.5,
-        &mut out,
-    );
+    shaping(Intrinsic::Additive, 0.5).chunk(&next, &term, &trunc, &mut phi, &mut out);
     assert_eq!(out, next);
 
     let counts = [1.0, 1.0, 4.0, 2.0, 16.0, 3.0, 1.0, 4.0, 25.0, 5.0];
     let mut phi = [0.0, 0.0];
-    chunk_bonus(
-        Intrinsic::Count,
-        G,
-        &counts,
-        &term,
-        &trunc,
-        &mut phi,
-        0.0,
-        &mut out,
-    );
+    shaping(Intrinsic::Count, 0.0).chunk(&counts, &term, &trunc, &mut phi, &mut out);
     for (o, n) in out.iter().zip(counts) {
         assert!(close(*o, 1.0 / f32::sqrt(n)));
     }
