@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use fulcrum_learner::run::{read_metrics, RunPaths};
+use fulcrum_learner::run::{read_metrics, MetricsRow, RunPaths};
 use fulcrum_learner::stats::{self, Point, Welch};
 use serde::{Deserialize, Serialize};
 
@@ -688,6 +688,42 @@ struct SeedSummary {
     final_success: Option<f64>,
     final_return: Option<f64>,
     auc: Option<f64>,
+    /// Diagnostics over the last 10 % of updates: intrinsic return per episode (the
+    /// form's b_t summed, before beta), tool pick-up rate per episode, fraction of steps
+    /// whose E(s') > 0.
+    final_intrinsic_return: Option<f64>,
+    final_pickup_rate: Option<f64>,
+    final_e_positive: Option<f64>,
+    /// Env steps of the first update in which an episode with a pick-up ended.
+    first_pickup_step: Option<f64>,
+}
+
+/// Episode-weighted mean of `f` over the last `frac` of the rows (NaN without episodes).
+fn tail_per_episode(rows: &[MetricsRow], frac: f64, f: fn(&MetricsRow) -> f64) -> f64 {
+    let k = ((rows.len() as f64 * frac).ceil() as usize).clamp(1, rows.len().max(1));
+    let (mut n, mut s) = (0.0, 0.0);
+    for r in &rows[rows.len().saturating_sub(k)..] {
+        if r.episodes > 0 && f(r).is_finite() {
+            n += r.episodes as f64;
+            s += f(r) * r.episodes as f64;
+        }
+    }
+    if n > 0.0 {
+        s / n
+    } else {
+        f64::NAN
+    }
+}
+
+/// Mean of the finite `e_positive_frac` over the last `frac` of the rows.
+fn tail_mean_e_positive(rows: &[MetricsRow], frac: f64) -> f64 {
+    let k = ((rows.len() as f64 * frac).ceil() as usize).clamp(1, rows.len().max(1));
+    let v: Vec<f64> = rows[rows.len().saturating_sub(k)..]
+        .iter()
+        .map(|r| r.e_positive_frac)
+        .filter(|x| x.is_finite())
+        .collect();
+    stats::mean_std(&v).0
 }
 
 #[derive(Debug, Serialize)]
@@ -701,6 +737,12 @@ struct ArmSummary {
     final_success: MeanStd,
     final_return: MeanStd,
     auc: MeanStd,
+    final_intrinsic_return: MeanStd,
+    final_pickup_rate: MeanStd,
+    final_e_positive: MeanStd,
+    /// Over the seeds that picked a tool up; `picked` says how many did.
+    first_pickup_step: MeanStd,
+    picked: usize,
     per_seed: Vec<SeedSummary>,
     success_mean: Vec<Option<f64>>,
     success_std: Vec<Option<f64>>,
@@ -776,6 +818,17 @@ fn aggregate(
                 final_success: finite(fs),
                 final_return: finite(fr),
                 auc: finite(auc),
+                final_intrinsic_return: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| {
+                    r.intrinsic_return
+                })),
+                final_pickup_rate: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| {
+                    r.pickup_rate
+                })),
+                final_e_positive: finite(tail_mean_e_positive(&rows, FINAL_FRACTION)),
+                first_pickup_step: rows
+                    .iter()
+                    .find(|r| r.episodes > 0 && r.pickup_rate > 0.0)
+                    .map(|r| r.env_steps as f64),
             });
             censored
                 .entry(arm.name.clone())
@@ -803,6 +856,11 @@ fn aggregate(
             final_success: MeanStd::of(&col(|s| s.final_success)),
             final_return: MeanStd::of(&col(|s| s.final_return)),
             auc: MeanStd::of(&col(|s| s.auc)),
+            final_intrinsic_return: MeanStd::of(&col(|s| s.final_intrinsic_return)),
+            final_pickup_rate: MeanStd::of(&col(|s| s.final_pickup_rate)),
+            final_e_positive: MeanStd::of(&col(|s| s.final_e_positive)),
+            first_pickup_step: MeanStd::of(&col(|s| s.first_pickup_step)),
+            picked: col(|s| s.first_pickup_step).len(),
             per_seed,
             success_mean: sb.iter().map(|b| finite(b.0)).collect(),
             success_std: sb.iter().map(|b| finite(b.1)).collect(),
@@ -887,6 +945,23 @@ fn markdown(s: &Summary) -> String {
             ms(&a.final_success, two),
             ms(&a.final_return, two),
             ms(&a.auc, |x| format!("{x:.3}")),
+        );
+    }
+    t += &format!(
+        "\nDiagnostics (the last {:.0} % of updates; intrinsic return is the form's term summed over an episode, before beta):\n\n\
+         | arm | intrinsic return per episode | steps with E > 0 | tool pick-up rate | first pick-up at (seeds) |\n|---|---|---|---|---|\n",
+        FINAL_FRACTION * 100.0
+    );
+    for a in &s.arms {
+        t += &format!(
+            "| {} | {} | {} | {} | {} ({}/{}) |\n",
+            a.name,
+            ms(&a.final_intrinsic_return, two),
+            ms(&a.final_e_positive, two),
+            ms(&a.final_pickup_rate, two),
+            ms(&a.first_pickup_step, steps_text),
+            a.picked,
+            a.finished,
         );
     }
     if !s.comparisons.is_empty() {

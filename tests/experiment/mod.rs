@@ -36,6 +36,11 @@ fn fake_run(dir: &Path, f: impl Fn(u64) -> f64) {
             episodes: 10,
             extrinsic_return: f(i),
             success_rate: f(i),
+            // Diagnostics: 10 bits per episode per update index, a pick-up from
+            // update 3 on, E > 0 on a quarter of the steps.
+            intrinsic_return: 10.0 * i as f64,
+            pickup_rate: if i >= 3 { 1.0 } else { 0.0 },
+            e_positive_frac: 0.25,
             ..MetricsRow::default()
         };
         text += &(row.csv() + "\n");
@@ -122,6 +127,12 @@ fn finished_runs_are_aggregated_into_hand_counted_figures() {
 
     // Final success (last 10 % = update 10): 1, 1, 0.
     assert!(close(f(&arm(0, "final_success")["mean"]), 2.0 / 3.0));
+    // Diagnostics of update 10; the first pick-up ends update 3 (3072 steps).
+    assert!(close(f(&arm(0, "final_intrinsic_return")["mean"]), 100.0));
+    assert!(close(f(&arm(0, "final_pickup_rate")["mean"]), 1.0));
+    assert!(close(f(&arm(0, "final_e_positive")["mean"]), 0.25));
+    assert!(close(f(&arm(0, "first_pickup_step")["mean"]), 3072.0));
+    assert_eq!(arm(0, "picked"), 3);
 
     // Welch on steps to 0.9 with the never-reached seed at the budget: baseline
     // {9216, 5120, 10240} (mean 8192, variance 7340032), empowerment {2048 x 3}
