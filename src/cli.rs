@@ -30,6 +30,9 @@ pub enum Command {
     /// Every (arm, seed) pair trained with `train`, then mean +/- std curves and a
     /// summary table per arm (steps to a success rate, final success, Welch's t-test).
     Experiment(ExperimentArgs),
+    /// Episodes of a run's policy as strips of frames (PNG): where the agent goes and
+    /// where the empowerment bonus is.
+    Record(RecordArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
     /// (train helper) the learner process of a run.
@@ -378,6 +381,26 @@ pub struct TrainArgs {
     /// Restarts of crashed actors or services allowed over the run.
     #[arg(long, default_value_t = 20)]
     pub max_restarts: u32,
+    /// At the end, play N episodes of the final policy and draw each as a strip of
+    /// frames in RUN/episodes/ (as `fulcrum record`).
+    #[arg(long)]
+    pub record: Option<usize>,
+}
+
+/// `fulcrum record`
+#[derive(Debug, Args)]
+pub struct RecordArgs {
+    /// A run directory (with its checkpoint).
+    pub run: PathBuf,
+    /// Episodes to play and draw (1 to 100).
+    #[arg(long, default_value_t = 3)]
+    pub episodes: usize,
+    /// Where the pictures go [default: RUN/episodes].
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Seed of the action sampling [default: the run's seed].
+    #[arg(long)]
+    pub seed: Option<u64>,
 }
 
 /// `fulcrum experiment`

@@ -27,9 +27,11 @@
 //! final path.
 
 mod bands;
+mod episode;
 mod matrix;
 mod scene;
 pub use bands::{band_chart_png, band_chart_svg, Band, BandChart};
+pub use episode::{episode_png, Frame, Strip};
 pub use matrix::{matrix_png, MatrixPicture};
 
 use std::fs::{self, File, OpenOptions};

@@ -10,6 +10,7 @@ use crate::cli::{Command, MethodArg};
 pub mod bench;
 pub mod empowerment;
 pub mod experiment;
+pub mod record;
 pub mod serve;
 pub mod train;
 pub mod world;
@@ -58,6 +59,7 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Bench(a) => bench::run(a),
         Command::Train(a) => train::run(&a),
         Command::Experiment(a) => experiment::run(&a),
+        Command::Record(a) => record::run(&a),
         Command::Learner(a) => train::learner_process(&a),
         Command::Actor(a) => train::actor_process(&a),
         Command::BenchClient {

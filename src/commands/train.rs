@@ -148,6 +148,15 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             if let Some(p) = drawn {
                 println!("learning curve: {}", p.display());
             }
+            if let Some(n) = a.record.filter(|&n| n > 0) {
+                let out = paths.dir.join("episodes");
+                let files = super::record::record(&paths, &cfg, &w, n, cfg.seed, &out)?;
+                println!(
+                    "{} episodes of the final policy: {}",
+                    files.len(),
+                    out.display()
+                );
+            }
             Ok(())
         }
         Ok(Outcome::Paused) => {

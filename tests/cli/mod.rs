@@ -549,3 +549,14 @@ fn the_matrix_picture_has_a_row_per_tool() {
     assert!(w >= 3 * 130, "{w}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[test]
+fn record_refuses_a_directory_without_a_run() {
+    let d = temp_dir("record-none");
+    std::fs::create_dir_all(&d).unwrap();
+    let out = fulcrum(&["record", d.to_str().unwrap()]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("no config.toml there"), "{err}");
+    let _ = std::fs::remove_dir_all(&d);
+}

@@ -592,19 +592,27 @@ fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
 }
 
 #[test]
-fn one_horizon_everywhere_with_horizon_mode_fixed() {
+fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
     let dir = run_dir("fixed");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
             &["room", "--steps", "1024", "--out", d][..],
             &["--horizon-mode", "fixed", "--horizon-unequipped", "5"],
+            &["--record", "2"],
             SMALL,
         ]
         .concat(),
     );
-    let (status, err, _) = finish(c, Duration::from_secs(120));
+    let (status, err, out) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
+    // --record 2: two strips of the final policy's episodes.
+    assert!(out.contains("2 episodes of the final policy"), "{out}");
+    for k in 1..=2 {
+        let png = std::fs::read(dir.join(format!("episodes/episode-{k}.png"))).unwrap();
+        assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    }
+    assert!(!dir.join("episodes/episode-3.png").exists());
     let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
     assert!(cfg.contains("horizon_unequipped = 5\n"), "{cfg}");
     assert!(cfg.contains("horizon_equipped = 5\n"), "{cfg}");
