@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Regenerates every number and picture of RESULTS.md:
-#   scripts/results.sh            the four experiments (10 seeds x 2 arms each), then pictures
-#   scripts/results.sh pictures   only the matrices, landscapes and traces, and copies of
-#                                 the curves of experiments already run
+#   scripts/results.sh            every experiment (10 seeds per arm), then the pictures
+#   scripts/results.sh pictures   only the matrices, landscapes and traces, and the
+#                                 summaries and curves of experiments already run
 # Experiments go to experiments/<world> (resumable: run it again after an interruption);
 # the committed pictures go to docs/results/.
 set -euo pipefail
@@ -12,19 +12,38 @@ f=target/release/fulcrum
 out=docs/results
 mkdir -p "$out"
 
-if [[ "${1:-}" != pictures ]]; then
-  $f experiment exp1-tree --seeds 10 --steps 2097152 --out experiments/exp1-tree
-  $f experiment exp1-wall --seeds 10 --steps 2097152 --out experiments/exp1-wall
-  $f experiment exp2 --seeds 10 --steps 3145728 --out experiments/exp2
-  $f experiment exp3 --seeds 10 --steps 3145728 --out experiments/exp3
-fi
-for w in exp1-tree exp1-wall exp2 exp3; do
-  if [[ -f experiments/$w/summary.md ]]; then
-    cp experiments/$w/plots/success.png "$out/$w-success.png"
-    cp experiments/$w/plots/return.png "$out/$w-return.png"
-    cp experiments/$w/summary.md "$out/$w-summary.md"
+# One experiment command; its summary and curves are copied under the given name (the
+# same directory serves several commands: finished runs are reused, not run again).
+run() {
+  local name=$1 world=$2; shift 2
+  if [[ "$mode" != pictures ]]; then
+    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@"
+  else
+    # Every run is finished: this only aggregates again.
+    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" > /dev/null
   fi
-done
+  cp "experiments/$world/plots/success.png" "$out/$name-success.png"
+  cp "experiments/$world/plots/return.png" "$out/$name-return.png"
+  cp "experiments/$world/summary.md" "$out/$name-summary.md"
+}
+mode=${1:-all}
+if [[ "$mode" != pictures || -d experiments/exp3 ]]; then
+  # Issue 5: PPO against PPO + the paper's additive bonus, four worlds.
+  run exp1-tree exp1-tree --steps 2097152
+  run exp1-wall exp1-wall --steps 2097152
+  run exp2 exp2 --steps 3145728
+  run exp3 exp3 --steps 3145728
+  # Issue 7: the intrinsic reward forms, and beta sweeps on exp1-tree.
+  for spec in "exp1-tree 2097152" "exp2 3145728" "exp3 3145728"; do
+    set -- $spec
+    run "$1-forms" "$1" --steps "$2" --arms baseline,empowerment,potential,count
+  done
+  run exp1-tree-sweep-additive exp1-tree --steps 2097152 --arms baseline,empowerment --beta-sweep 0.0001,0.01
+  run exp1-tree-sweep-potential exp1-tree --steps 2097152 --arms baseline,potential --intrinsic potential --beta-sweep 0.0001,0.01
+  # The beacon trap, seen: an episode of an additive exp1-tree agent.
+  $f record experiments/exp1-tree/runs/empowerment/seed-5 --episodes 1 --out target/trap > /dev/null
+  cp target/trap/episode-1.png "$out/trap-exp1-tree-additive-seed-5.png"
+fi
 
 # Tables II and III, and exp3's matrix.
 $f empowerment matrix exp1-tree --joint tree+wall --png "$out/exp1-tree-matrix.png" > "$out/exp1-tree-matrix.txt"
