@@ -322,7 +322,8 @@ pub struct TrainArgs {
     /// Seed of weights, sampling, minibatches and worlds.
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Env steps in all (rounded up to whole updates) [default: 500000].
+    /// Env steps in all: a multiple of the batch (actors x worlds per actor x steps per
+    /// chunk) [default: 500000 rounded up to whole updates].
     #[arg(long)]
     pub steps: Option<u64>,
     /// Run directory [default: runs/<world>-<time>-<seed>].

@@ -225,6 +225,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         }
         if let Some(s) = a.steps {
             cfg.total_steps = s;
+            whole_updates(&cfg)?;
         }
         if let Some(k) = a.checkpoint_every {
             cfg.checkpoint_every = k;
@@ -347,6 +348,9 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         );
     }
     cfg.check().map_err(super::BadInput)?;
+    if a.steps.is_some() {
+        whole_updates(&cfg)?;
+    }
     if cfg.empowerment {
         // Tool and objects are resolved (and refused) here, before any process starts.
         super::objects_or_default(
@@ -364,6 +368,22 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         }
     }
     Ok((cfg, w))
+}
+
+/// An explicit `--steps` must be whole updates: a run never stops in the middle of
+/// one, and a silent round-up would train for more steps than asked.
+fn whole_updates(cfg: &RunConfig) -> Result<()> {
+    let b = cfg.batch() as u64;
+    let s = cfg.total_steps;
+    if s % b != 0 {
+        let below = s / b * b;
+        return bad(format!(
+            "--steps {s} is not a whole number of updates of {b} steps (actors x worlds per actor x steps per chunk): use {}{}",
+            if below > 0 { format!("{below} or ") } else { String::new() },
+            below + b
+        ));
+    }
+    Ok(())
 }
 
 fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {

@@ -188,6 +188,10 @@ fn bad_experiments_are_refused_before_any_run() {
             "may not set",
         ),
         (vec!["experiment", "no-such-world"], "no-such-world"),
+        (
+            vec!["experiment", "room", "--steps", "1500"],
+            "not a whole number of updates",
+        ),
     ] {
         let (code, err) = first_line_and_status(&args, &dir);
         assert_eq!(code, 2, "{args:?}: {err}");

@@ -382,6 +382,26 @@ fn bad_training_settings_are_refused_before_anything_starts() {
         (vec!["room", "--tool", "hammer", "--out", d], "unknown tool"),
         (vec!["no-such-world", "--out", d], "no-such-world"),
         (vec!["--resume", "/nonexistent/run"], "no config.toml"),
+        // 1 actor x 8 worlds x 128 steps = 1024 a batch: 1500 is not whole updates.
+        (
+            vec!["room", "--actors", "1", "--steps", "1500", "--out", d],
+            "use 1024 or 2048",
+        ),
+        (
+            vec!["room", "--horizon-unequipped", "65", "--out", d],
+            "--horizon-unequipped 65",
+        ),
+        (
+            vec![
+                "room",
+                "--intrinsic",
+                "count",
+                "--no-empowerment",
+                "--out",
+                d,
+            ],
+            "contradict",
+        ),
     ] {
         let (s, err, _) = finish(train(&args), Duration::from_secs(30));
         assert_eq!(s.code(), Some(2), "{args:?}: {err}");
@@ -521,7 +541,7 @@ fn the_whole_system_learns_the_room() {
         let d = dir.to_str().unwrap();
         let args = [
             &[
-                "room", "--actors", "1", "--steps", "200000", "--seed", "1", "--out", d,
+                "room", "--actors", "1", "--steps", "200704", "--seed", "1", "--out", d,
             ][..],
             arm,
         ]
