@@ -247,6 +247,21 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
                 cfg.world_hash
             ));
         }
+        // A damaged checkpoint is refused here, before any process starts.
+        let ckpt = paths.checkpoint();
+        if ckpt.exists() {
+            let net = fulcrum_learner::net::Net::new(
+                fulcrum_learner::local::shape_for(&w, cfg.hidden),
+                cfg.seed,
+                &candle_core::Device::Cpu,
+            )?;
+            let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+            if let Err(e) = fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
+                return bad(format!(
+                    "{e}; the run cannot continue from it (start a new run, or restore the file)"
+                ));
+            }
+        }
         write_config(&paths, &cfg)?;
         return Ok((cfg, w, paths, true));
     }

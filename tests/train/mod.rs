@@ -791,3 +791,48 @@ fn shared_memory_of_a_run_is_owner_only() {
     assert!(status.success(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
+    let dir = run_dir("damaged");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--actors", "1", "--steps", "512", "--out", d][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert!(status.success(), "{err}");
+    let ckpt = dir.join("checkpoints/latest.safetensors");
+    let good = std::fs::read(&ckpt).unwrap();
+    let config = std::fs::read(dir.join("config.toml")).unwrap();
+    let rows = std::fs::read(dir.join("metrics.csv")).unwrap();
+    // Truncated, then one flipped byte in the tensor data (the checksum catches it).
+    let mut flipped = good.clone();
+    let last = flipped.len() - 1;
+    flipped[last] ^= 0x40;
+    for (bytes, says) in [
+        (good[..good.len() / 2].to_vec(), "truncated or corrupt"),
+        (flipped, "checksum"),
+    ] {
+        std::fs::write(&ckpt, &bytes).unwrap();
+        let (status, err, _) = finish(
+            train(&["--resume", d, "--steps", "1024"]),
+            Duration::from_secs(30),
+        );
+        assert_eq!(status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(&ckpt.display().to_string()),
+            "names the file: {err}"
+        );
+        assert!(err.contains(says), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(!err.contains("namespace"), "no process started: {err}");
+        // Nothing of the run was touched.
+        assert_eq!(std::fs::read(dir.join("config.toml")).unwrap(), config);
+        assert_eq!(std::fs::read(dir.join("metrics.csv")).unwrap(), rows);
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
