@@ -667,13 +667,11 @@ fn trim_metrics(path: &Path, upto: u64) -> Result<(), LearnerError> {
     let Ok(text) = std::fs::read_to_string(path) else {
         return Ok(());
     };
-    let mut out = String::new();
-    for (i, line) in text.lines().enumerate() {
-        let keep = i == 0
-            || MetricsRow::parse(line)
-                .map(|r| r.update <= upto)
-                .unwrap_or(false);
-        if keep {
+    // The current header (a file from an older version gains the new columns), then
+    // the whole rows up to the checkpoint; a row torn by a crash does not parse and goes.
+    let mut out = METRICS_COLUMNS.join(",") + "\n";
+    for line in text.lines().skip(1) {
+        if MetricsRow::parse(line).is_some_and(|r| r.update <= upto) {
             out.push_str(line);
             out.push('\n');
         }

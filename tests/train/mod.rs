@@ -213,34 +213,45 @@ fn a_killed_actor_is_replaced_and_the_run_finishes() {
         ]
         .concat(),
     );
-    wait_rows(&dir, 3, Duration::from_secs(60));
-    let victims = pids_with(&["__actor", d, "--index 0"]);
-    assert_eq!(victims.len(), 1, "one actor 0: {victims:?}");
-    sig(victims[0], "-KILL");
-    let t0 = Instant::now();
-    loop {
-        if c.try_wait().unwrap().is_some() {
+    // Three kills of actor 0, at different points of the run.
+    let mut kills = 0;
+    for at in [3, 60, 150] {
+        wait_rows(&dir, at, Duration::from_secs(60));
+        let victims = pids_with(&["__actor", d, "--index 0"]);
+        if c.try_wait().unwrap().is_some() || victims.len() != 1 {
             break;
         }
-        let now = pids_with(&["__actor", d, "--index 0"]);
-        if !now.is_empty() && now != victims {
-            break;
+        sig(victims[0], "-KILL");
+        kills += 1;
+        let t0 = Instant::now();
+        loop {
+            if c.try_wait().unwrap().is_some() {
+                break;
+            }
+            let now = pids_with(&["__actor", d, "--index 0"]);
+            if !now.is_empty() && now != victims {
+                break;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(20),
+                "actor 0 not replaced"
+            );
+            std::thread::sleep(Duration::from_millis(20));
         }
-        assert!(
-            t0.elapsed() < Duration::from_secs(20),
-            "actor 0 not replaced"
-        );
-        std::thread::sleep(Duration::from_millis(20));
     }
+    assert!(kills >= 2, "the run ended before the kills ({kills})");
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
-    assert!(
-        err.contains("actor 0 stopped (signal 9); restarted"),
+    assert_eq!(
+        err.matches("actor 0 stopped (signal 9); restarted").count(),
+        kills,
         "{err}"
     );
+    // Every update is whole (one full chunk per actor: the step count grows by the
+    // batch each row) and the run reaches its steps.
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
     assert_contiguous(&rows, 1000, 256);
-    assert!(rows.last().unwrap().actor_restarts >= 1);
+    assert_eq!(rows.last().unwrap().actor_restarts, kills as u64);
     assert_nothing_left(&namespace_of(&err));
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -834,5 +845,88 @@ fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
         assert_eq!(std::fs::read(dir.join("config.toml")).unwrap(), config);
         assert_eq!(std::fs::read(dir.join("metrics.csv")).unwrap(), rows);
     }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_torn_metrics_row_is_dropped_on_resume() {
+    let dir = run_dir("torn");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--actors", "1", "--steps", "1024", "--out", d][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert!(status.success(), "{err}");
+    // A crash in the middle of writing row 9.
+    let path = dir.join("metrics.csv");
+    let mut text = std::fs::read_to_string(&path).unwrap();
+    text.push_str("9,1152,4,0.");
+    std::fs::write(&path, text).unwrap();
+    let (status, err, _) = finish(
+        train(&["--resume", d, "--steps", "2048"]),
+        Duration::from_secs(60),
+    );
+    assert!(status.success(), "{err}");
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        text.lines().skip(1).all(|l| MetricsRow::parse(l).is_some()),
+        "{text}"
+    );
+    assert_contiguous(&read_metrics(&path).unwrap(), 16, 128);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Socket inodes of a process's open files.
+fn socket_inodes(pid: u32) -> Vec<String> {
+    let mut v = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(format!("/proc/{pid}/fd")) {
+        for e in rd.flatten() {
+            if let Ok(t) = std::fs::read_link(e.path()) {
+                let t = t.to_string_lossy().to_string();
+                if let Some(i) = t.strip_prefix("socket:[") {
+                    v.push(i.trim_end_matches(']').to_string());
+                }
+            }
+        }
+    }
+    v
+}
+
+#[test]
+fn nothing_of_a_run_uses_a_network_socket() {
+    let dir = run_dir("net");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--actors", "2", "--steps", "128000", "--out", d][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 3, Duration::from_secs(60));
+    let mut pids = children_with(c.id(), "fulcrum");
+    pids.push(c.id());
+    assert!(
+        pids.len() >= 4,
+        "supervisor, service, learner, actors: {pids:?}"
+    );
+    let ours: Vec<String> = pids.iter().flat_map(|&p| socket_inodes(p)).collect();
+    // Every TCP and UDP socket of the machine, v4 and v6: none is the run's.
+    for table in ["tcp", "tcp6", "udp", "udp6"] {
+        let text = std::fs::read_to_string(format!("/proc/net/{table}")).unwrap_or_default();
+        for line in text.lines().skip(1) {
+            let inode = line.split_whitespace().nth(9).unwrap_or("");
+            assert!(
+                !ours.iter().any(|i| i == inode),
+                "a {table} socket of the run: {line}"
+            );
+        }
+    }
+    let (status, err, _) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
