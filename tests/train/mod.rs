@@ -930,3 +930,132 @@ fn nothing_of_a_run_uses_a_network_socket() {
     assert!(status.success(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn chunks_of_another_run_or_world_are_refused_and_counted() {
+    use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
+    fulcrum_empowerment::service::quiet_ipc_logs();
+    let dir = run_dir("foreign");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--actors", "1", "--steps", "64000", "--out", d][..],
+            &["--no-empowerment"],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 3, Duration::from_secs(60));
+    // The run's services are named after its namespace (the learner's --namespace).
+    // Publish well-formed chunks into the run's own trajectory service that claim
+    // another run, and another world.
+    let ns = {
+        let t0 = Instant::now();
+        loop {
+            let found = pids_with(&["__learner", d]);
+            if let Some(&p) = found.first() {
+                let cmd = std::fs::read(format!("/proc/{p}/cmdline")).unwrap();
+                let args: Vec<String> = String::from_utf8_lossy(&cmd)
+                    .split('\0')
+                    .map(str::to_string)
+                    .collect();
+                let i = args.iter().position(|a| a == "--namespace").unwrap();
+                break args[i + 1].clone();
+            }
+            assert!(t0.elapsed() < Duration::from_secs(10), "no learner");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    };
+    let w = fulcrum_shared::load_world("room").unwrap();
+    let spec = w.obs_spec();
+    let layout = ChunkLayout {
+        envs: 4,
+        steps: 32,
+        cells: spec.cells(),
+        flags: spec.flags,
+    };
+    let node = NodeBuilder::new()
+        .signal_handling_mode(SignalHandlingMode::Disabled)
+        .create::<ipc::Service>()
+        .unwrap();
+    let names = TrainNames::new(&ns);
+    let svc = traj::trajectory_service(&node, &names).unwrap();
+    let publisher = svc
+        .publisher_builder()
+        .initial_max_slice_len(layout.bytes())
+        .create()
+        .unwrap();
+    let good = ChunkHeader {
+        run: traj::run_tag(&ns),
+        world_hash: w.content_hash(),
+        envs: 4,
+        steps: 32,
+        cells: spec.cells() as u32,
+        flags: spec.flags as u32,
+        actions: w.num_actions() as u32,
+        len: layout.bytes() as u64,
+        ..ChunkHeader::default()
+    };
+    for h in [
+        ChunkHeader {
+            run: good.run ^ 1,
+            ..good
+        },
+        ChunkHeader {
+            world_hash: good.world_hash ^ 1,
+            ..good
+        },
+    ] {
+        let mut s = publisher.loan_slice(layout.bytes()).unwrap();
+        s.payload_mut().fill(0);
+        *s.user_header_mut() = h;
+        s.send().unwrap();
+    }
+    let (status, err, _) = finish(c, Duration::from_secs(120));
+    assert!(status.success(), "{err}");
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_contiguous(&rows, 500, 128);
+    assert_eq!(
+        rows.last().unwrap().dropped_chunks,
+        2,
+        "both foreign chunks refused"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn a_failed_checkpoint_write_ends_the_run_clearly_and_keeps_the_last_one() {
+    let dir = run_dir("ckfail");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &["room", "--actors", "1", "--steps", "256000", "--out", d][..],
+            &["--no-empowerment", "--checkpoint-every", "20"],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 21, Duration::from_secs(60));
+    // The next checkpoint cannot be written: its temporary path is taken by a
+    // non-empty directory (a failure even root cannot override, like a full disk).
+    let tmp = dir.join("checkpoints/latest.safetensors.tmp");
+    std::fs::create_dir(&tmp).unwrap();
+    std::fs::write(tmp.join("x"), b"x").unwrap();
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("latest.safetensors.tmp"),
+        "names the file: {err}"
+    );
+    assert!(err.contains(&format!("--resume {d}")), "{err}");
+    assert_nothing_left(&namespace_of(&err));
+    // The previous checkpoint is whole: with the path free again, the run resumes.
+    std::fs::remove_dir_all(&tmp).unwrap();
+    let (status, err, _) = finish(
+        train(&["--resume", d, "--steps", "10240"]),
+        Duration::from_secs(60),
+    );
+    assert!(status.success(), "{err}");
+    assert_contiguous(&read_metrics(&dir.join("metrics.csv")).unwrap(), 80, 128);
+    let _ = std::fs::remove_dir_all(&dir);
+}
