@@ -112,12 +112,7 @@ pub fn record(
         loop {
             let s = ep.state;
             let here = value(&s).unwrap_or(0.0);
-            frames.push(fulcrum_plot_frame(
-                w,
-                &s,
-                &value,
-                format!("{caption} E={here:.2}"),
-            ));
+            frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
             w.observe(&s, &mut g, &mut f);
             policy.act(&g, &f, &mut rng, &mut act, &mut lp, &mut v);
             let o = w.env_step(&mut ep, act[0]);
@@ -127,12 +122,7 @@ pub fn record(
             if o.terminated || o.truncated {
                 let s = ep.state;
                 let here = value(&s).unwrap_or(0.0);
-                frames.push(fulcrum_plot_frame(
-                    w,
-                    &s,
-                    &value,
-                    format!("{caption} E={here:.2}"),
-                ));
+                frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
                 let outcome = if o.terminated {
                     "task done"
                 } else {
@@ -159,7 +149,7 @@ pub fn record(
 }
 
 /// One frame: the glyphs of `s` and, per cell, E for the agent standing there.
-fn fulcrum_plot_frame(
+fn frame(
     w: &World,
     s: &fulcrum_shared::State,
     value: &dyn Fn(&fulcrum_shared::State) -> Option<f64>,
