@@ -390,6 +390,59 @@ pub enum ServeExit {
     Terminate,
 }
 
+/// The termination signal the service saw (0 = none), set by [`chain_signal`].
+static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+/// The handlers iceoryx2 installed for SIGINT and SIGTERM, called after ours.
+static PREVIOUS: std::sync::OnceLock<[libc::sigaction; 2]> = std::sync::OnceLock::new();
+
+extern "C" fn chain_signal(sig: libc::c_int) {
+    STOP_SIGNAL.store(sig, std::sync::atomic::Ordering::SeqCst);
+    if let Some(prev) = PREVIOUS.get() {
+        let p = &prev[usize::from(sig != libc::SIGINT)];
+        if p.sa_sigaction != libc::SIG_DFL && p.sa_sigaction != libc::SIG_IGN {
+            // SAFETY: the previous handler is iceoryx2's plain `fn(c_int)` handler, installed
+            // without SA_SIGINFO; calling it from a handler is what the kernel would do.
+            let f: extern "C" fn(libc::c_int) = unsafe { std::mem::transmute(p.sa_sigaction) };
+            f(sig);
+        }
+    }
+}
+
+/// Records SIGINT and SIGTERM in our own flag as well as in iceoryx2's. iceoryx2 keeps
+/// only the last signal in one global that some of its calls reset (its
+/// `call_and_fetch` around shared-memory writes), and a signal delivered to another
+/// thread does not interrupt the wait-set's epoll: either way a Ctrl-C could be lost
+/// and the service would never stop. The wait-set checks this flag every 100 ms.
+fn chain_termination_signals() {
+    // iceoryx2 installs its handlers the first time its SignalHandler is used: make that
+    // happen now, so that ours goes on top (and keep a signal that came before).
+    use iceoryx2_bb_posix::signal::{NonFatalFetchableSignal, SignalHandler};
+    match SignalHandler::last_signal() {
+        Some(NonFatalFetchableSignal::Interrupt) => {
+            STOP_SIGNAL.store(libc::SIGINT, std::sync::atomic::Ordering::SeqCst)
+        }
+        Some(NonFatalFetchableSignal::Terminate) => {
+            STOP_SIGNAL.store(libc::SIGTERM, std::sync::atomic::Ordering::SeqCst)
+        }
+        _ => {}
+    }
+    PREVIOUS.get_or_init(|| {
+        // SAFETY: sigaction with a zeroed struct, our handler and an empty mask; the old
+        // actions are read into zeroed structs we own.
+        unsafe {
+            let mut old: [libc::sigaction; 2] = std::mem::zeroed();
+            for (i, sig) in [libc::SIGINT, libc::SIGTERM].into_iter().enumerate() {
+                let mut act: libc::sigaction = std::mem::zeroed();
+                act.sa_sigaction = chain_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+                act.sa_flags = libc::SA_RESTART;
+                libc::sigemptyset(&mut act.sa_mask);
+                libc::sigaction(sig, &act, &mut old[i]);
+            }
+            old
+        }
+    });
+}
+
 /// Run the service until SIGINT or SIGTERM. `ready` is called once the ports are up.
 pub fn serve(
     tables: &mut Tables,
@@ -446,6 +499,10 @@ pub fn serve(
     let tick = waitset
         .attach_interval(Duration::from_secs(2))
         .map_err(ipc_err!("interval"))?;
+    let stop_check = waitset
+        .attach_interval(Duration::from_millis(100))
+        .map_err(ipc_err!("interval"))?;
+    chain_termination_signals();
     ready(tables.describe());
 
     let mut stats = ServeStats::default();
@@ -453,6 +510,12 @@ pub fn serve(
     let spin = tables.cfg.spin;
     let mut failure: Option<ServiceError> = None;
     let result = waitset.wait_and_process(|id| {
+        if STOP_SIGNAL.load(std::sync::atomic::Ordering::SeqCst) != 0 {
+            return CallbackProgression::Stop;
+        }
+        if id.has_event_from(&stop_check) {
+            return CallbackProgression::Continue;
+        }
         if id.has_event_from(&tick) {
             clean_dead_nodes();
             tracing::debug!(
@@ -493,10 +556,15 @@ pub fn serve(
     if let Some(e) = failure {
         return Err(e);
     }
-    match result {
-        Ok(WaitSetRunResult::Interrupt) => Ok((ServeExit::Interrupt, stats)),
-        Ok(_) => Ok((ServeExit::Terminate, stats)),
-        Err(e) => Err(ipc("wait")(&e)),
+    match (
+        result,
+        STOP_SIGNAL.load(std::sync::atomic::Ordering::SeqCst),
+    ) {
+        (Ok(_), libc::SIGINT) | (Ok(WaitSetRunResult::Interrupt), _) => {
+            Ok((ServeExit::Interrupt, stats))
+        }
+        (Ok(_), _) => Ok((ServeExit::Terminate, stats)),
+        (Err(e), _) => Err(ipc("wait")(&e)),
     }
 }
 

@@ -497,3 +497,34 @@ fn visit_counts_are_shared_by_two_client_processes() {
     counts.sort_unstable();
     assert_eq!(counts, (1..=600).collect::<Vec<u32>>());
 }
+
+#[test]
+fn a_signal_delivered_to_any_thread_stops_the_service_at_once() {
+    // A process-directed signal may land on any thread; one that lands on a thread
+    // other than the one in epoll does not interrupt the wait, and iceoryx2 keeps the
+    // last signal in a global that some of its calls reset. The service keeps its own
+    // flag and checks it every 100 ms.
+    for sig in [libc::SIGINT, libc::SIGTERM] {
+        let ns = namespace("anythread");
+        let mut s = Serve::start("room", &ns, &[]);
+        let pid = s.child.id() as i32;
+        let tids: Vec<i32> = std::fs::read_dir(format!("/proc/{pid}/task"))
+            .unwrap()
+            .flatten()
+            .filter_map(|e| e.file_name().to_string_lossy().parse().ok())
+            .filter(|&t| t != pid)
+            .collect();
+        assert!(!tids.is_empty(), "the service has worker threads");
+        // SAFETY: tgkill to a thread of our own child.
+        let r = unsafe { libc::syscall(libc::SYS_tgkill, pid, tids[0], sig) };
+        assert_eq!(r, 0);
+        let t0 = Instant::now();
+        let status = s.wait(Duration::from_secs(5)).expect("the service stops");
+        assert!(
+            t0.elapsed() < Duration::from_millis(1000),
+            "{:?}",
+            t0.elapsed()
+        );
+        assert!(status.success(), "{status:?}");
+    }
+}
