@@ -29,7 +29,7 @@
 //! seed that never gets there counted at the whole budget, and area under the curve).
 
 use std::collections::BTreeMap;
-use std::io::{IsTerminal, Read, Seek, SeekFrom};
+use std::io::{Read, Seek, SeekFrom};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -609,17 +609,10 @@ struct Progress {
 
 impl Progress {
     fn new(total: u64) -> Progress {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let b = indicatif::ProgressBar::new(total);
-            b.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{elapsed_precise} [{bar:30}] {percent:>3}% env steps  {msg}  eta {eta}",
-                )
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-                .progress_chars("=> "),
-            );
-            b
-        });
+        let bar = super::terminal_bar(
+            total,
+            "{elapsed_precise} [{bar:30}] {percent:>3}% env steps  {msg}  eta {eta}",
+        );
         Progress {
             bar,
             last_line: Instant::now(),

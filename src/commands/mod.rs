@@ -78,6 +78,21 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
     }
 }
 
+/// A progress bar of `len` with `template` when stderr is a terminal (None elsewhere:
+/// callers print a line now and then instead).
+pub fn terminal_bar(len: u64, template: &str) -> Option<indicatif::ProgressBar> {
+    use std::io::IsTerminal;
+    std::io::stderr().is_terminal().then(|| {
+        let b = indicatif::ProgressBar::new(len);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(template)
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+                .progress_chars("=> "),
+        );
+        b
+    })
+}
+
 /// Load a world by name or path.
 pub fn world(name: &str) -> Result<World> {
     Ok(load_world(name)?)

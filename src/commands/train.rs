@@ -13,7 +13,7 @@
 //! service is restarted (bounded); a crashed learner ends the run with its last
 //! checkpoint and a message saying how to resume.
 
-use std::io::{BufRead, BufReader, IsTerminal, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
@@ -732,17 +732,10 @@ struct Progress {
 
 impl Progress {
     fn new(updates: u64) -> Progress {
-        let bar = std::io::stderr().is_terminal().then(|| {
-            let b = indicatif::ProgressBar::new(updates);
-            b.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{elapsed_precise} [{bar:30}] {pos}/{len} updates  {msg}",
-                )
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
-                .progress_chars("=> "),
-            );
-            b
-        });
+        let bar = super::terminal_bar(
+            updates,
+            "{elapsed_precise} [{bar:30}] {pos}/{len} updates  {msg}",
+        );
         Progress {
             bar,
             updates,
