@@ -865,33 +865,46 @@ fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     Ok(())
 }
 
-/// End-to-end `fulcrum train exp1-tree` with empowerment: env steps per second of the
-/// learner's updates (median over updates after the first), defaults for this machine.
-fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
-    let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
-    let batch = (super::train::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
-    let steps = if quick { 16 } else { 100 } * batch;
-    let exe = std::env::current_exe()?;
-    let out = std::process::Command::new(exe)
-        .args(["train", "exp1-tree", "--steps", &steps.to_string(), "--out"])
-        .arg(&dir)
+/// Runs `fulcrum train ARGS --out DIR` (then removes DIR) and returns the env steps per
+/// second of each update after the first (which pays for start-up), and the run's
+/// resolved configuration.
+fn train_sps(
+    args: &[&str],
+    dir: &std::path::Path,
+) -> Result<(Vec<f64>, fulcrum_learner::config::RunConfig)> {
+    let _ = std::fs::remove_dir_all(dir);
+    let out = std::process::Command::new(std::env::current_exe()?)
+        .arg("train")
+        .args(args)
+        .arg("--out")
+        .arg(dir)
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .output()?;
     ensure!(
         out.status.success(),
-        "fulcrum train failed: {}",
+        "fulcrum train {} failed: {}",
+        args.join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
     let rows = fulcrum_learner::run::read_metrics(&dir.join("metrics.csv"))?;
     let cfg = fulcrum_learner::config::RunConfig::load(&dir.join("config.toml"))
         .map_err(anyhow::Error::msg)?;
-    let _ = std::fs::remove_dir_all(&dir);
-    let mut sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
+    let _ = std::fs::remove_dir_all(dir);
+    let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
     ensure!(!sps.is_empty(), "the run made too few updates");
+    Ok((sps, cfg))
+}
+
+/// End-to-end `fulcrum train exp1-tree` with empowerment: env steps per second of the
+/// learner's updates (median over updates after the first), defaults for this machine.
+fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
+    // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
+    let batch = (super::train::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let steps = if quick { 16 } else { 100 } * batch;
+    let (mut sps, cfg) = train_sps(&["exp1-tree", "--steps", &steps.to_string()], &dir)?;
     sps.sort_by(f64::total_cmp);
     figs.push(Figure {
         zero_ok: false,

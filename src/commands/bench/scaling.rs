@@ -48,7 +48,6 @@ fn median_std(mut v: Vec<f64>) -> (f64, f64) {
 }
 
 fn training(plots: &Path, figs: &mut Vec<Figure>) -> Result<()> {
-    let exe = std::env::current_exe()?;
     let mut bands = Vec::new();
     for &a in &ACTORS {
         let (mut mean, mut std) = (Vec::new(), Vec::new());
@@ -57,33 +56,23 @@ fn training(plots: &Path, figs: &mut Vec<Figure>) -> Result<()> {
                 "fulcrum-bench-scaling-{}-{a}-{e}",
                 std::process::id()
             ));
-            let _ = std::fs::remove_dir_all(&dir);
             let steps = UPDATES * (a * e * 128) as u64;
             let t0 = Instant::now();
-            let out = std::process::Command::new(&exe)
-                .args(["train", "exp1-tree", "--steps", &steps.to_string()])
-                .args([
+            let (sps, _) = super::train_sps(
+                &[
+                    "exp1-tree",
+                    "--steps",
+                    &steps.to_string(),
                     "--actors",
                     &a.to_string(),
                     "--envs-per-actor",
                     &e.to_string(),
-                ])
-                .args(["--checkpoint-every", "1000", "--out"])
-                .arg(&dir)
-                .stdin(std::process::Stdio::null())
-                .stdout(std::process::Stdio::null())
-                .stderr(std::process::Stdio::piped())
-                .output()?;
-            ensure!(
-                out.status.success(),
-                "fulcrum train ({a} actors x {e} worlds) failed: {}",
-                String::from_utf8_lossy(&out.stderr)
-            );
+                    "--checkpoint-every",
+                    "1000",
+                ],
+                &dir,
+            )?;
             let wall = t0.elapsed().as_secs_f64();
-            let rows = fulcrum_learner::run::read_metrics(&dir.join("metrics.csv"))?;
-            let _ = std::fs::remove_dir_all(&dir);
-            let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
-            ensure!(!sps.is_empty(), "the run made too few updates");
             let (m, s) = median_std(sps);
             eprintln!("scaling: {a} actors x {e} worlds: {m:.0} steps/s ({wall:.1} s)");
             figs.push(Figure {
