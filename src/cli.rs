@@ -15,6 +15,7 @@ pub struct Cli {
 
 /// Subcommands.
 #[derive(Debug, Subcommand)]
+#[allow(clippy::large_enum_variant)] // parsed once per process
 pub enum Command {
     /// Inspect or generate tool worlds.
     #[command(subcommand)]
@@ -35,6 +36,13 @@ pub enum Command {
     Record(RecordArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
+    /// Actors on this host for a run whose learner is on another host (`train
+    /// --listen`); needs the `multihost` feature.
+    ActorHost(ActorHostArgs),
+    /// Forward a run's chunks, weights and empowerment lookups between this host's
+    /// shared memory and zenoh (started by `train --listen` and `actor-host`); needs the
+    /// `multihost` feature.
+    Bridge(BridgeArgs),
     /// (train helper) the learner process of a run.
     #[command(hide = true, name = "__learner")]
     Learner(ChildArgs),
@@ -386,6 +394,96 @@ pub struct TrainArgs {
     /// frames in RUN/episodes/ (as `fulcrum record`).
     #[arg(long)]
     pub record: Option<usize>,
+    /// Let actors on other hosts join (`fulcrum actor-host --connect ADDR` there):
+    /// listen for zenoh peers on ADDR (`host:port` or a zenoh locator such as
+    /// `tcp/0.0.0.0:7447`). Needs the `multihost` feature.
+    #[arg(long, value_name = "ADDR")]
+    pub listen: Option<String>,
+    /// With --listen: seconds the learner waits for a remote actor's chunk before it
+    /// goes on without it [default: 10].
+    #[arg(long, value_name = "SECS")]
+    pub stall_timeout: Option<f64>,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
+
+/// How a host reaches the others (feature `multihost`).
+#[derive(Debug, Clone, Args)]
+pub struct ZenohArgs {
+    /// Seconds without a word from the other host before its session is closed (zenoh's
+    /// link lease); a host whose session closed reconnects by itself.
+    #[arg(long, value_name = "SECS", default_value_t = 10.0)]
+    pub session_timeout: f64,
+    /// A zenoh configuration file (JSON5) to start from; fulcrum sets mode, endpoints
+    /// and lease on top of it.
+    #[arg(long, value_name = "FILE")]
+    pub zenoh_config: Option<PathBuf>,
+}
+
+/// `fulcrum actor-host`
+#[derive(Debug, Args)]
+pub struct ActorHostArgs {
+    /// The learner's host: the ADDR its `train --listen` listens on (`host:port` or a
+    /// zenoh locator).
+    #[arg(long, value_name = "ADDR")]
+    pub connect: String,
+    /// Actor processes on this host [default: cores - 1, at least 1].
+    #[arg(long)]
+    pub actors: Option<usize>,
+    /// This host's name in the run's metrics [default: the hostname].
+    #[arg(long)]
+    pub name: Option<String>,
+    /// Refuse to join unless the run trains this world (a file or built-in name).
+    #[arg(long)]
+    pub world: Option<String>,
+    /// Working directory (the run's config and world as received, logs)
+    /// [default: runs/remote-<name>].
+    #[arg(long)]
+    pub dir: Option<PathBuf>,
+    /// Seconds to wait for the learner, at the start and after a lost link.
+    #[arg(long, value_name = "SECS", default_value_t = 600.0)]
+    pub give_up: f64,
+    /// Restarts of crashed actors allowed.
+    #[arg(long, default_value_t = 20)]
+    pub max_restarts: u32,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
+}
+
+/// `fulcrum bridge`
+#[derive(Debug, Args)]
+pub struct BridgeArgs {
+    /// The learner's side: listen on ADDR for actor hosts.
+    #[arg(
+        long,
+        value_name = "ADDR",
+        conflicts_with = "connect",
+        required_unless_present = "connect"
+    )]
+    pub listen: Option<String>,
+    /// An actor host's side: connect to the learner's host at ADDR.
+    #[arg(long, value_name = "ADDR")]
+    pub connect: Option<String>,
+    /// The run directory (--listen), or this host's working directory (--connect).
+    #[arg(long)]
+    pub run: PathBuf,
+    /// --listen: the run's shared-memory namespace.
+    #[arg(long, required_unless_present = "connect")]
+    pub namespace: Option<String>,
+    /// --connect: this host's name [default: the hostname].
+    #[arg(long)]
+    pub name: Option<String>,
+    /// --connect: refuse to join unless the run trains this world.
+    #[arg(long)]
+    pub world: Option<String>,
+    /// --connect: seconds to wait for the learner, at the start and after a lost link.
+    #[arg(long, value_name = "SECS", default_value_t = 600.0)]
+    pub give_up: f64,
+    /// Stop when this process is gone.
+    #[arg(long, hide = true)]
+    pub parent: Option<u32>,
+    #[command(flatten)]
+    pub zenoh: ZenohArgs,
 }
 
 /// `fulcrum record`
@@ -474,4 +572,8 @@ pub struct ChildArgs {
     /// Learner: stop after this many updates of this session.
     #[arg(long)]
     pub stop_after_updates: Option<u64>,
+    /// Actor on another host: the run's tag (hex) for its chunks, when the local
+    /// namespace is not the run's.
+    #[arg(long)]
+    pub run_tag: Option<String>,
 }

@@ -84,12 +84,15 @@ pub fn chunk_seed(seed: u64, actor: u32, version: u64, k: u64) -> u64 {
     x
 }
 
-/// Run an actor until `stop` is set (or the learner goes away).
+/// Run an actor until `stop` is set (or the learner goes away). Its chunks carry
+/// `run_tag`, or [`traj::run_tag`] of `namespace` (an actor on another host than the
+/// learner's works in a namespace of its own and carries the run's tag).
 pub fn run_actor(
     world: &World,
     cfg: &RunConfig,
     checkpoint_path: &Path,
     namespace: &str,
+    run_tag: Option<u64>,
     id: ActorId,
     stop: &'static AtomicBool,
 ) -> Result<(), ActorError> {
@@ -104,7 +107,7 @@ pub fn run_actor(
     };
     let (c, f) = (shape.cells, shape.flags);
     let n = layout.n();
-    let run = traj::run_tag(namespace);
+    let run = run_tag.unwrap_or_else(|| traj::run_tag(namespace));
     let world_hash = world.content_hash();
 
     let node = NodeBuilder::new()

@@ -395,6 +395,18 @@ static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32:
 /// The handlers iceoryx2 installed for SIGINT and SIGTERM, called after ours.
 static PREVIOUS: std::sync::OnceLock<[libc::sigaction; 2]> = std::sync::OnceLock::new();
 
+/// Make a running [`serve`] / [`serve_with`] return as if it got SIGTERM (within
+/// 100 ms), from any thread.
+pub fn request_stop() {
+    STOP_SIGNAL.store(libc::SIGTERM, std::sync::atomic::Ordering::SeqCst);
+}
+
+/// Whether SIGINT or SIGTERM reached a process that serves (or [`request_stop`] was
+/// called).
+pub fn stop_requested() -> bool {
+    STOP_SIGNAL.load(std::sync::atomic::Ordering::SeqCst) != 0
+}
+
 extern "C" fn chain_signal(sig: libc::c_int) {
     STOP_SIGNAL.store(sig, std::sync::atomic::Ordering::SeqCst);
     if let Some(prev) = PREVIOUS.get() {
@@ -443,12 +455,43 @@ fn chain_termination_signals() {
     });
 }
 
+/// What answers a service's requests: its own [`Tables`], or a bridge that asks the
+/// service of another host (feature `multihost`).
+pub trait Answer {
+    /// The DESCRIBE answer.
+    fn describe(&self) -> &Describe;
+    /// Answer one request into `out` (all-zero on entry). Never panics on input.
+    fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse);
+}
+
+impl Answer for Tables<'_> {
+    fn describe(&self) -> &Describe {
+        Tables::describe(self)
+    }
+    fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse) {
+        Tables::answer(self, req, out)
+    }
+}
+
 /// Run the service until SIGINT or SIGTERM. `ready` is called once the ports are up.
 pub fn serve(
     tables: &mut Tables,
     ready: impl FnOnce(&Describe),
 ) -> Result<(ServeExit, ServeStats), ServiceError> {
     let ns = tables.cfg.namespace.clone();
+    let spin = tables.cfg.spin;
+    serve_with(tables, &ns, spin, ready)
+}
+
+/// Serve `namespace`'s requests with `answers` until SIGINT or SIGTERM (polling `spin`
+/// for pipelined follow-ups before blocking). `ready` is called once the ports are up.
+pub fn serve_with(
+    answers: &mut dyn Answer,
+    namespace: &str,
+    spin: Duration,
+    ready: impl FnOnce(&Describe),
+) -> Result<(ServeExit, ServeStats), ServiceError> {
+    let ns = namespace.to_string();
     if !msg::valid_namespace(&ns) {
         return Err(ServiceError::BadNamespace(ns));
     }
@@ -503,11 +546,10 @@ pub fn serve(
         .attach_interval(Duration::from_millis(100))
         .map_err(ipc_err!("interval"))?;
     chain_termination_signals();
-    ready(tables.describe());
+    ready(answers.describe());
 
     let mut stats = ServeStats::default();
     let mut keys: HashMap<u128, iceoryx2::port::notifier::ListenerKey> = HashMap::new();
-    let spin = tables.cfg.spin;
     let mut failure: Option<ServiceError> = None;
     let result = waitset.wait_and_process(|id| {
         if STOP_SIGNAL.load(std::sync::atomic::Ordering::SeqCst) != 0 {
@@ -533,7 +575,7 @@ pub fn serve(
         loop {
             match server.receive() {
                 Ok(Some(req)) => {
-                    if let Err(e) = handle(tables, &req, &notifier, &mut keys, &mut stats) {
+                    if let Err(e) = handle(answers, &req, &notifier, &mut keys, &mut stats) {
                         failure = Some(e);
                         return CallbackProgression::Stop;
                     }
@@ -570,7 +612,7 @@ pub fn serve(
 
 /// Answer one active request and wake its client.
 fn handle(
-    tables: &mut Tables,
+    answers: &mut dyn Answer,
     req: &iceoryx2::active_request::ActiveRequest<ipc::Service, EmpRequest, u128, EmpResponse, ()>,
     notifier: &Notifier<ipc::Service>,
     keys: &mut HashMap<u128, iceoryx2::port::notifier::ListenerKey>,
@@ -593,7 +635,7 @@ fn handle(
         &mut *p
     };
     let payload: &EmpRequest = req.payload();
-    tables.answer(payload, out);
+    answers.answer(payload, out);
     stats.requests += 1;
     stats.states += out.count as u64;
     stats.busy_us += t0.elapsed().as_micros() as u64;
@@ -842,7 +884,8 @@ impl Client {
         horizon: u32,
     ) -> Result<(), ClientError> {
         // Packed straight into the loaned sample: no copy on the way.
-        self.send_slots(k, states.len(), tool, objects, horizon, |i| {
+        let hash = self.world_hash;
+        self.send_slots(hash, k, states.len(), tool, objects, horizon, |i| {
             states[i].to_bytes()
         })
     }
@@ -857,12 +900,39 @@ impl Client {
         objects: u32,
         horizon: u32,
     ) -> Result<(), ClientError> {
-        self.send_slots(k, states.len(), tool, objects, horizon, |i| states[i])
+        let hash = self.world_hash;
+        self.send_slots(hash, k, states.len(), tool, objects, horizon, |i| states[i])
+    }
+
+    /// Send another client's request as it is (its world hash, kind, states), without
+    /// waiting: a bridge forwarding requests from another host. Collect the whole
+    /// answer with [`Client::recv_response`].
+    pub fn forward(&mut self, req: &EmpRequest) -> Result<(), ClientError> {
+        let n = (req.count as usize).min(MAX_BATCH);
+        if req.count as usize > MAX_BATCH {
+            return Err(ClientError::Refused(status::BAD_COUNT));
+        }
+        self.send_slots(
+            req.world_hash,
+            req.kind,
+            n,
+            req.tool,
+            req.objects,
+            req.horizon,
+            |i| req.states[i],
+        )
+    }
+
+    /// Wait for the oldest request's whole answer, whatever its status.
+    pub fn recv_response(&mut self) -> Result<Box<EmpResponse>, ClientError> {
+        Ok(self.receive_one()?.0)
     }
 
     /// Loan a request, write its header and `n` state slots from `slot`, send it.
+    #[allow(clippy::too_many_arguments)]
     fn send_slots(
         &mut self,
+        world_hash: u64,
         k: u32,
         n: usize,
         tool: i32,
@@ -888,7 +958,7 @@ impl Client {
         // per request).
         let req = unsafe {
             let p = req.payload_mut().as_mut_ptr();
-            std::ptr::addr_of_mut!((*p).world_hash).write(self.world_hash);
+            std::ptr::addr_of_mut!((*p).world_hash).write(world_hash);
             std::ptr::addr_of_mut!((*p).kind).write(k);
             std::ptr::addr_of_mut!((*p).count).write(n as u32);
             std::ptr::addr_of_mut!((*p).tool).write(tool);

@@ -62,12 +62,25 @@ pub struct RunConfig {
     pub max_policy_lag: u64,
     /// Checkpoint every this many updates (and at the end).
     pub checkpoint_every: u64,
+    /// Whether actors on other hosts may join (`train --listen`, feature `multihost`).
+    /// Then an update takes one chunk from every local actor and every live remote one,
+    /// and the run ends after `total_steps` env steps, whatever the batches were.
+    #[serde(default)]
+    pub remote: bool,
+    /// Seconds the learner waits for a remote actor's chunk before it goes on without
+    /// it (the actor rejoins with its next chunk).
+    #[serde(default = "default_stall_timeout")]
+    pub stall_timeout_s: f64,
     /// PPO hyperparameters (the `[ppo]` table).
     pub ppo: PpoConfig,
 }
 
 fn default_intrinsic() -> String {
     "additive".into()
+}
+
+fn default_stall_timeout() -> f64 {
+    10.0
 }
 
 fn default_horizon_mode() -> String {
@@ -97,7 +110,14 @@ impl RunConfig {
     /// The first thing wrong with the configuration, as one sentence.
     pub fn check(&self) -> Result<(), String> {
         let b = self.batch();
-        let checks: [(bool, String); 12] = [
+        let checks: [(bool, String); 13] = [
+            (
+                !(self.stall_timeout_s.is_finite() && self.stall_timeout_s > 0.0),
+                format!(
+                    "--stall-timeout {} must be a positive number of seconds",
+                    self.stall_timeout_s
+                ),
+            ),
             (self.actors == 0, "--actors must be at least 1".into()),
             (
                 self.actors > fulcrum_shared::traj::MAX_ACTORS,
@@ -239,6 +259,8 @@ mod tests {
             horizon_unequipped: 2,
             horizon_equipped: 1,
             max_policy_lag: 0,
+            remote: false,
+            stall_timeout_s: 10.0,
             checkpoint_every: 10,
             ppo: PpoConfig::default(),
         }

@@ -61,11 +61,13 @@ pub const METRICS_COLUMNS: &[&str] = &[
     "wall_s",
     "e_positive_frac",
     "first_pickup_step",
+    "lost_chunks",
+    "remote_actors",
 ];
 
 /// Columns of `metrics.csv` files written before `e_positive_frac` and
-/// `first_pickup_step` (still read).
-const LEGACY_COLUMNS: usize = 19;
+/// `first_pickup_step`, and before `lost_chunks` and `remote_actors` (still read).
+const LEGACY_COLUMNS: [usize; 2] = [19, 21];
 
 /// One row of `metrics.csv`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -106,6 +108,11 @@ pub struct MetricsRow {
     /// Env steps at the end of the first update in which an episode with a tool pick-up
     /// ended (None before that).
     pub first_pickup_step: Option<u64>,
+    /// Chunks that never arrived so far: gaps in an actor's chunk sequence (remote
+    /// hosts whose link went down; 0 on one machine).
+    pub lost_chunks: u64,
+    /// Actors of other hosts whose chunks this update used.
+    pub remote_actors: u64,
 }
 
 impl MetricsRow {
@@ -142,6 +149,8 @@ impl MetricsRow {
             self.first_pickup_step
                 .map(|s| s.to_string())
                 .unwrap_or_default(),
+            self.lost_chunks.to_string(),
+            self.remote_actors.to_string(),
         ]
         .join(",")
     }
@@ -149,7 +158,7 @@ impl MetricsRow {
     /// Parse a CSV line written by [`MetricsRow::csv`] (empty fields are NaN).
     pub fn parse(line: &str) -> Option<MetricsRow> {
         let v: Vec<&str> = line.trim_end().split(',').collect();
-        if v.len() != METRICS_COLUMNS.len() && v.len() != LEGACY_COLUMNS {
+        if v.len() != METRICS_COLUMNS.len() && !LEGACY_COLUMNS.contains(&v.len()) {
             return None;
         }
         let f = |i: usize| -> Option<f64> {
@@ -187,6 +196,8 @@ impl MetricsRow {
                 None | Some(&"") => None,
                 Some(_) => Some(u(20)?),
             },
+            lost_chunks: if v.len() > 21 { u(21)? } else { 0 },
+            remote_actors: if v.len() > 22 { u(22)? } else { 0 },
         })
     }
 }
@@ -220,6 +231,14 @@ impl RunPaths {
     /// `plots/`.
     pub fn plots(&self) -> PathBuf {
         self.dir.join("plots")
+    }
+    /// `hosts.csv`: per update and host, the chunks used (runs with `--listen`).
+    pub fn hosts(&self) -> PathBuf {
+        self.dir.join("hosts.csv")
+    }
+    /// `hosts.txt`: `index name address` per remote host, written by the bridge.
+    pub fn host_names(&self) -> PathBuf {
+        self.dir.join("hosts.txt")
     }
 }
 
@@ -265,6 +284,8 @@ struct Counters {
     wall_s: f64,
     /// Env steps at the first update with a pick-up (0 = none yet).
     first_pickup: u64,
+    /// Chunks lost in transit (sequence gaps).
+    lost: u64,
 }
 
 fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
@@ -297,6 +318,7 @@ pub fn run_learner(
         ctr.episodes = get("episodes");
         ctr.dropped = get("dropped_chunks");
         ctr.first_pickup = get("first_pickup_step");
+        ctr.lost = get("lost_chunks");
         ctr.wall_s = extra.floats.get("wall_s").copied().unwrap_or(0.0);
         if let Some(r) = extra
             .blobs
@@ -311,6 +333,7 @@ pub fn run_learner(
             .filter(|(k, _)| k.starts_with("env/"))
             .collect();
         trim_metrics(&paths.metrics(), ctr.update)?;
+        trim_rows(&paths.hosts(), HOSTS_COLUMNS, ctr.update)?;
         tracing::info!(update = ctr.update, "resumed from checkpoint");
     }
     let updates = cfg.updates();
@@ -370,6 +393,20 @@ pub fn run_learner(
     publish(ctr.update)?;
 
     let mut metrics = open_metrics(&paths.metrics())?;
+    let remote = cfg.remote;
+    let stall = Duration::from_secs_f64(cfg.stall_timeout_s);
+    // Remote actors seen, and whether the learner waits for them (a stalled one is
+    // live again with its next chunk).
+    let mut roster: BTreeMap<u32, bool> = BTreeMap::new();
+    // Per actor: (incarnation, last sequence number): a gap is a lost chunk.
+    let mut last_seq: BTreeMap<u32, (u32, u64)> = BTreeMap::new();
+    let mut hosts = if remote {
+        Some(HostsLog::open(paths)?)
+    } else {
+        None
+    };
+    let target =
+        |roster: &BTreeMap<u32, bool>| cfg.actors + roster.values().filter(|&&l| l).count();
     let mut restarts: BTreeMap<u32, u32> = BTreeMap::new();
     let mut pending: Vec<Chunk> = Vec::new();
     let ppo = cfg.ppo;
@@ -377,16 +414,33 @@ pub fn run_learner(
     let wall0 = ctr.wall_s;
     let mut last = Instant::now();
     let n_actions = world.num_actions();
-    while ctr.update < updates {
+    let more = |ctr: &Counters| {
+        if remote {
+            ctr.env_steps < cfg.total_steps
+        } else {
+            ctr.update < updates
+        }
+    };
+    while more(&ctr) {
         let version = ctr.update;
         // 1. Gather.
-        let mut batch: Vec<Chunk> = Vec::with_capacity(cfg.actors);
+        let mut batch: Vec<Chunk> = Vec::with_capacity(target(&roster));
         // Chunks received earlier that are still usable.
         for c in std::mem::take(&mut pending) {
-            admit(c, version, cfg, &mut batch, &mut pending, &mut ctr.dropped);
+            let k = target(&roster);
+            admit(
+                c,
+                version,
+                cfg,
+                k,
+                &mut batch,
+                &mut pending,
+                &mut ctr.dropped,
+            );
         }
         let mut idle = Instant::now();
-        while batch.len() < cfg.actors {
+        let mut gather = Instant::now();
+        while batch.len() < target(&roster) {
             if stop.load(Ordering::Relaxed) {
                 ctr.wall_s = wall0 + started.elapsed().as_secs_f64();
                 save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
@@ -409,16 +463,65 @@ pub fn run_learner(
                 }
                 let r = restarts.entry(h.actor).or_default();
                 *r = (*r).max(h.incarnation);
+                if let Some(&(inc, s)) = last_seq.get(&h.actor) {
+                    if inc == h.incarnation && h.seq > s + 1 {
+                        let gap = h.seq - s - 1;
+                        ctr.lost += gap;
+                        if let Some(log) = hosts.as_mut() {
+                            *log.lost.entry(traj::host_of(h.actor)).or_default() += gap;
+                        }
+                        tracing::warn!(
+                            actor = h.actor,
+                            lost = gap,
+                            "chunks of an actor never arrived"
+                        );
+                    }
+                }
+                last_seq.insert(h.actor, (h.incarnation, h.seq));
+                if remote
+                    && traj::host_of(h.actor) > 0
+                    && roster.insert(h.actor, true) != Some(true)
+                {
+                    tracing::info!(
+                        actor = h.actor,
+                        host = traj::host_of(h.actor),
+                        "a remote actor joined"
+                    );
+                }
                 let c = Chunk {
                     h,
                     data: payload.to_vec(),
                 };
-                admit(c, version, cfg, &mut batch, &mut pending, &mut ctr.dropped);
-                if batch.len() >= cfg.actors {
+                let k = target(&roster);
+                admit(
+                    c,
+                    version,
+                    cfg,
+                    k,
+                    &mut batch,
+                    &mut pending,
+                    &mut ctr.dropped,
+                );
+                if batch.len() >= k {
                     break;
                 }
             }
-            if !got && batch.len() < cfg.actors {
+            if remote && !got && gather.elapsed() > stall {
+                // Go on without the remote actors that have not delivered; each is
+                // awaited again from its next chunk.
+                for (a, live) in roster.iter_mut() {
+                    if *live && !batch.iter().any(|c| c.h.actor == *a) {
+                        *live = false;
+                        tracing::warn!(
+                            actor = *a,
+                            host = traj::host_of(*a),
+                            "no chunk from a remote actor within the stall timeout: going on without it"
+                        );
+                    }
+                }
+                gather = Instant::now();
+            }
+            if !got && batch.len() < target(&roster) {
                 let _ = listener.timed_wait(|_| {}, Duration::from_millis(50));
                 if idle.elapsed() > Duration::from_secs(1) {
                     // Weights may have been missed by a (re)started actor: repeat them.
@@ -507,7 +610,11 @@ pub fn run_learner(
         }
 
         // 3. PPO.
-        let lr = ppo.lr * (1.0 - ctr.update as f64 / updates as f64);
+        let lr = if remote {
+            ppo.lr * (1.0 - (ctr.env_steps as f64 / cfg.total_steps as f64).min(1.0))
+        } else {
+            ppo.lr * (1.0 - ctr.update as f64 / updates as f64)
+        };
         row.stats = update(
             &net,
             &mut adam,
@@ -561,6 +668,11 @@ pub fn run_learner(
         row.dropped_chunks = ctr.dropped;
         row.actor_restarts = restarts.values().map(|&r| r as u64).sum();
         row.wall_s = wall0 + started.elapsed().as_secs_f64();
+        row.lost_chunks = ctr.lost;
+        row.remote_actors = batch
+            .iter()
+            .filter(|c| traj::host_of(c.h.actor) > 0)
+            .count() as u64;
         last = now;
         writeln!(metrics, "{}", row.csv())
             .and_then(|_| metrics.flush())
@@ -570,8 +682,21 @@ pub fn run_learner(
                     paths.metrics().display()
                 ))
             })?;
-        progress(&row, updates);
-        if ctr.update % cfg.checkpoint_every == 0 || ctr.update == updates {
+        if let Some(log) = hosts.as_mut() {
+            log.append(paths, ctr.update, &batch, n as u64, &roster)?;
+        }
+        let planned = if remote {
+            // Updates so far plus those the remaining steps need at this batch size.
+            ctr.update
+                + cfg
+                    .total_steps
+                    .saturating_sub(ctr.env_steps)
+                    .div_ceil(total as u64)
+        } else {
+            updates
+        };
+        progress(&row, planned);
+        if ctr.update % cfg.checkpoint_every == 0 || !more(&ctr) {
             ctr.wall_s = row.wall_s;
             save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
         }
@@ -586,6 +711,7 @@ fn admit(
     c: Chunk,
     version: u64,
     cfg: &RunConfig,
+    target: usize,
     batch: &mut Vec<Chunk>,
     pending: &mut Vec<Chunk>,
     dropped: &mut u64,
@@ -601,7 +727,7 @@ fn admit(
     } else {
         lag <= cfg.max_policy_lag
     };
-    if fresh && batch.len() < cfg.actors {
+    if fresh && batch.len() < target {
         batch.push(c);
     } else if fresh {
         pending.push(c);
@@ -627,6 +753,7 @@ fn save(
         .counters
         .insert("first_pickup_step".into(), ctr.first_pickup);
     extra.counters.insert("dropped_chunks".into(), ctr.dropped);
+    extra.counters.insert("lost_chunks".into(), ctr.lost);
     extra.floats.insert("wall_s".into(), ctr.wall_s);
     extra
         .blobs
@@ -643,8 +770,96 @@ fn save(
     Ok(())
 }
 
+/// The columns of `hosts.csv`.
+pub const HOSTS_COLUMNS: &[&str] = &[
+    "update",
+    "host",
+    "name",
+    "actors",
+    "chunks",
+    "env_steps",
+    "lost_chunks",
+];
+
+/// `hosts.csv` of a run with remote hosts: one row per update and host.
+struct HostsLog {
+    file: std::fs::File,
+    names: BTreeMap<u32, String>,
+    /// Chunks lost per host so far (this session).
+    lost: BTreeMap<u32, u64>,
+}
+
+impl HostsLog {
+    fn open(paths: &RunPaths) -> Result<HostsLog, LearnerError> {
+        let file = open_csv(&paths.hosts(), HOSTS_COLUMNS)?;
+        Ok(HostsLog {
+            file,
+            names: BTreeMap::from([(0, "local".to_string())]),
+            lost: BTreeMap::new(),
+        })
+    }
+
+    fn append(
+        &mut self,
+        paths: &RunPaths,
+        update: u64,
+        batch: &[Chunk],
+        steps_per_chunk: u64,
+        roster: &BTreeMap<u32, bool>,
+    ) -> Result<(), LearnerError> {
+        let mut per: BTreeMap<u32, (u64, u64)> = BTreeMap::new(); // host -> (actors, chunks)
+        for c in batch {
+            per.entry(traj::host_of(c.h.actor)).or_default().1 += 1;
+        }
+        for (&a, &live) in roster {
+            let e = per.entry(traj::host_of(a)).or_default();
+            e.0 += live as u64;
+        }
+        for h in self.lost.keys() {
+            per.entry(*h).or_default();
+        }
+        if per.keys().any(|h| !self.names.contains_key(h)) {
+            // Names of hosts that joined since: `index name address` lines.
+            if let Ok(text) = std::fs::read_to_string(paths.host_names()) {
+                for line in text.lines() {
+                    let mut w = line.split_whitespace();
+                    if let (Some(i), Some(name)) = (w.next().and_then(|i| i.parse().ok()), w.next())
+                    {
+                        self.names.insert(i, name.to_string());
+                    }
+                }
+            }
+        }
+        let mut out = String::new();
+        for (h, (actors, chunks)) in per {
+            let actors = if h == 0 { chunks } else { actors };
+            let name = self
+                .names
+                .get(&h)
+                .cloned()
+                .unwrap_or_else(|| format!("host{h}"));
+            out.push_str(&format!(
+                "{update},{h},{name},{actors},{chunks},{},{}\n",
+                chunks * steps_per_chunk,
+                self.lost.get(&h).copied().unwrap_or(0)
+            ));
+        }
+        self.file
+            .write_all(out.as_bytes())
+            .and_then(|_| self.file.flush())
+            .map_err(|e| {
+                LearnerError::Run(format!("cannot append to {}: {e}", paths.hosts().display()))
+            })
+    }
+}
+
 /// Open `metrics.csv` for appending, writing the header if it is new.
 fn open_metrics(path: &Path) -> Result<std::fs::File, LearnerError> {
+    open_csv(path, METRICS_COLUMNS)
+}
+
+/// Open a CSV file for appending, writing `columns` as its header if it is new.
+fn open_csv(path: &Path, columns: &[&str]) -> Result<std::fs::File, LearnerError> {
     let fresh = !path.exists()
         || std::fs::metadata(path)
             .map(|m| m.len() == 0)
@@ -655,10 +870,39 @@ fn open_metrics(path: &Path) -> Result<std::fs::File, LearnerError> {
         .open(path)
         .map_err(|e| LearnerError::Run(format!("cannot open {}: {e}", path.display())))?;
     if fresh {
-        writeln!(f, "{}", METRICS_COLUMNS.join(","))
+        writeln!(f, "{}", columns.join(","))
             .map_err(|e| LearnerError::Run(format!("cannot write {}: {e}", path.display())))?;
     }
     Ok(f)
+}
+
+/// Keep the header and the whole rows of updates `<= upto` of a CSV file whose first
+/// column is the update (`hosts.csv`); rewritten atomically.
+fn trim_rows(path: &Path, columns: &[&str], upto: u64) -> Result<(), LearnerError> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(());
+    };
+    let mut out = columns.join(",") + "\n";
+    for line in text.lines().skip(1) {
+        let whole = line.split(',').count() == columns.len();
+        if whole
+            && line
+                .split(',')
+                .next()
+                .and_then(|u| u.parse::<u64>().ok())
+                .is_some_and(|u| u <= upto)
+        {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    if out != text {
+        let tmp = path.with_extension("csv.tmp");
+        std::fs::write(&tmp, &out)
+            .and_then(|_| std::fs::rename(&tmp, path))
+            .map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
+    }
+    Ok(())
 }
 
 /// Keep the header and the rows of updates `<= upto` (rows written after the last
@@ -715,6 +959,8 @@ mod tests {
             wall_s: 9.75,
             e_positive_frac: 0.375,
             first_pickup_step: Some(2048),
+            lost_chunks: 5,
+            remote_actors: 2,
         };
         let line = r.csv();
         assert_eq!(line.split(',').count(), METRICS_COLUMNS.len());
@@ -727,12 +973,15 @@ mod tests {
             first_pickup_step: None,
             ..r
         };
-        assert!(none.csv().ends_with(",0.375,"));
+        assert!(none.csv().ends_with(",0.375,,5,2"));
         assert_eq!(
             MetricsRow::parse(&none.csv()).unwrap().first_pickup_step,
             None
         );
-        // Rows of files written before the last two columns still parse.
+        // Rows of files written before the last columns still parse.
+        let mid: Vec<&str> = line.split(',').take(21).collect();
+        let mid = MetricsRow::parse(&mid.join(",")).unwrap();
+        assert_eq!((mid.first_pickup_step, mid.lost_chunks), (Some(2048), 0));
         let legacy: Vec<&str> = line.split(',').take(19).collect();
         let old = MetricsRow::parse(&legacy.join(",")).unwrap();
         assert_eq!(old.wall_s, 9.75);

@@ -53,6 +53,9 @@ pub mod status {
     pub const WRONG_WORLD: u32 = 6;
     /// The table for the query would not fit in the service's memory bound.
     pub const TOO_LARGE: u32 = 7;
+    /// A bridge to another host's service got no answer in time (the link is down):
+    /// ask again later.
+    pub const UNAVAILABLE: u32 = 8;
 
     /// A sentence for a status.
     pub fn describe(s: u32) -> &'static str {
@@ -65,6 +68,7 @@ pub mod status {
             BAD_HORIZON => "horizon over the limit",
             WRONG_WORLD => "the request is for another world",
             TOO_LARGE => "the table would not fit in the service's memory bound",
+            UNAVAILABLE => "the service on the learner's host could not be reached",
             _ => "unknown status",
         }
     }
@@ -158,6 +162,57 @@ pub struct EmpResponse {
     pub describe: Describe,
 }
 
+impl Describe {
+    /// All zero: no world.
+    pub fn empty() -> Describe {
+        Describe {
+            world: [0; 64],
+            world_hash: 0,
+            states: 0,
+            normal_states: 0,
+            n_tools: 0,
+            n_objects: 0,
+            tools: [[0; NAME_BYTES]; 16],
+            objects: [[0; NAME_BYTES]; 16],
+            tool: 0,
+            object_mask: 0,
+            horizon_unequipped: 0,
+            horizon_equipped: 0,
+        }
+    }
+}
+
+impl EmpRequest {
+    /// An all-zero request on the heap (39 KB).
+    pub fn boxed() -> Box<EmpRequest> {
+        Box::new(EmpRequest {
+            world_hash: 0,
+            kind: 0,
+            count: 0,
+            tool: 0,
+            horizon: 0,
+            objects: 0,
+            seq: 0,
+            states: [[0; STATE_BYTES]; MAX_BATCH],
+        })
+    }
+}
+
+impl EmpResponse {
+    /// An all-zero answer on the heap.
+    pub fn boxed() -> Box<EmpResponse> {
+        Box::new(EmpResponse {
+            status: 0,
+            count: 0,
+            seq: 0,
+            reserved: 0,
+            values: [0.0; MAX_BATCH],
+            item_status: [0; MAX_BATCH],
+            describe: Describe::empty(),
+        })
+    }
+}
+
 /// Write a name into a fixed NUL-padded field (cut at the field's size).
 pub fn put_name<const N: usize>(dst: &mut [u8; N], s: &str) {
     *dst = [0; N];
@@ -207,4 +262,245 @@ pub fn valid_namespace(ns: &str) -> bool {
         && ns
             .bytes()
             .all(|b| b.is_ascii_alphanumeric() || b == b'_' || b == b'-' || b == b'.')
+}
+
+/// Wire forms of requests and answers for hosts that do not share memory (the
+/// `multihost` bridge): little-endian, only the `count` states or values that are used.
+pub mod wire {
+    use super::{Describe, EmpRequest, EmpResponse, MAX_BATCH, NAME_BYTES, STATE_BYTES};
+
+    /// Bytes in front of a request's states.
+    pub const REQUEST_HEAD: usize = 32;
+    /// Bytes of a [`Describe`] on the wire.
+    pub const DESCRIBE_BYTES: usize = 64 + 8 * 3 + 4 * 2 + NAME_BYTES * 32 + 4 * 4;
+
+    struct Reader<'a>(&'a [u8]);
+
+    impl Reader<'_> {
+        fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+            let (a, b) = self.0.split_first_chunk::<N>()?;
+            self.0 = b;
+            Some(*a)
+        }
+        fn u32(&mut self) -> Option<u32> {
+            self.take().map(u32::from_le_bytes)
+        }
+        fn u64(&mut self) -> Option<u64> {
+            self.take().map(u64::from_le_bytes)
+        }
+    }
+
+    /// A request: header, then `count` packed states.
+    pub fn request(r: &EmpRequest) -> Vec<u8> {
+        let n = (r.count as usize).min(MAX_BATCH);
+        let mut out = Vec::with_capacity(REQUEST_HEAD + n * STATE_BYTES);
+        out.extend_from_slice(&r.world_hash.to_le_bytes());
+        for v in [r.kind, r.count, r.tool as u32, r.horizon, r.objects, r.seq] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for s in &r.states[..n] {
+            out.extend_from_slice(s);
+        }
+        out
+    }
+
+    /// Read a request written by [`request`] into `out` (whose unused states are left
+    /// as they are). A sentence says what is wrong with bytes that are not one.
+    pub fn read_request(bytes: &[u8], out: &mut EmpRequest) -> Result<(), String> {
+        let mut r = Reader(bytes);
+        let head = (|| {
+            Some((
+                r.u64()?,
+                r.u32()?,
+                r.u32()?,
+                r.u32()?,
+                r.u32()?,
+                r.u32()?,
+                r.u32()?,
+            ))
+        })()
+        .ok_or_else(|| {
+            format!(
+                "a request of {} bytes is shorter than its header",
+                bytes.len()
+            )
+        })?;
+        let (world_hash, kind, count, tool, horizon, objects, seq) = head;
+        let n = count as usize;
+        if n > MAX_BATCH {
+            return Err(format!("a request of {n} states (at most {MAX_BATCH})"));
+        }
+        if r.0.len() != n * STATE_BYTES {
+            return Err(format!(
+                "a request of {n} states carries {} bytes of states, not {}",
+                r.0.len(),
+                n * STATE_BYTES
+            ));
+        }
+        out.world_hash = world_hash;
+        out.kind = kind;
+        out.count = count;
+        out.tool = tool as i32;
+        out.horizon = horizon;
+        out.objects = objects;
+        out.seq = seq;
+        for (slot, s) in out.states.iter_mut().zip(r.0.chunks_exact(STATE_BYTES)) {
+            slot.copy_from_slice(s);
+        }
+        Ok(())
+    }
+
+    fn describe(d: &Describe, out: &mut Vec<u8>) {
+        out.extend_from_slice(&d.world);
+        for v in [d.world_hash, d.states, d.normal_states] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&d.n_tools.to_le_bytes());
+        out.extend_from_slice(&d.n_objects.to_le_bytes());
+        for n in d.tools.iter().chain(&d.objects) {
+            out.extend_from_slice(n);
+        }
+        for v in [
+            d.tool as u32,
+            d.object_mask,
+            d.horizon_unequipped,
+            d.horizon_equipped,
+        ] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+
+    fn read_describe(r: &mut Reader, d: &mut Describe) -> Option<()> {
+        d.world = r.take()?;
+        d.world_hash = r.u64()?;
+        d.states = r.u64()?;
+        d.normal_states = r.u64()?;
+        d.n_tools = r.u32()?;
+        d.n_objects = r.u32()?;
+        for n in d.tools.iter_mut() {
+            *n = r.take()?;
+        }
+        for n in d.objects.iter_mut() {
+            *n = r.take()?;
+        }
+        d.tool = r.u32()? as i32;
+        d.object_mask = r.u32()?;
+        d.horizon_unequipped = r.u32()?;
+        d.horizon_equipped = r.u32()?;
+        Some(())
+    }
+
+    /// An answer: status, count, seq, then `count` values and statuses, then the
+    /// service's [`Describe`].
+    pub fn response(r: &EmpResponse) -> Vec<u8> {
+        let n = (r.count as usize).min(MAX_BATCH);
+        let mut out = Vec::with_capacity(16 + n * 5 + DESCRIBE_BYTES);
+        for v in [r.status, r.count, r.seq, r.reserved] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        for v in &r.values[..n] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
+        out.extend_from_slice(&r.item_status[..n]);
+        describe(&r.describe, &mut out);
+        out
+    }
+
+    /// Read an answer written by [`response`] into `out`.
+    pub fn read_response(bytes: &[u8], out: &mut EmpResponse) -> Result<(), String> {
+        let mut r = Reader(bytes);
+        let short = || format!("an answer of {} bytes is cut short", bytes.len());
+        let (status, count, seq, reserved) =
+            (|| Some((r.u32()?, r.u32()?, r.u32()?, r.u32()?)))().ok_or_else(short)?;
+        let n = count as usize;
+        if n > MAX_BATCH {
+            return Err(format!("an answer of {n} values (at most {MAX_BATCH})"));
+        }
+        if r.0.len() != n * 5 + DESCRIBE_BYTES {
+            return Err(short());
+        }
+        out.status = status;
+        out.count = count;
+        out.seq = seq;
+        out.reserved = reserved;
+        for v in out.values[..n].iter_mut() {
+            *v = f32::from_le_bytes(r.take().ok_or_else(short)?);
+        }
+        for s in out.item_status[..n].iter_mut() {
+            *s = r.take::<1>().ok_or_else(short)?[0];
+        }
+        read_describe(&mut r, &mut out.describe).ok_or_else(short)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn requests_travel_with_only_their_states() {
+        let mut r = EmpRequest::boxed();
+        r.world_hash = 0xabcd;
+        r.kind = kind::VISIT;
+        r.count = 2;
+        r.tool = TOOL_ALL;
+        r.horizon = 7;
+        r.objects = AGENT_BIT | 1;
+        r.seq = 41;
+        r.states[0] = [3; STATE_BYTES];
+        r.states[1] = [5; STATE_BYTES];
+        r.states[2] = [9; STATE_BYTES]; // beyond count: not sent
+        let b = wire::request(&r);
+        assert_eq!(b.len(), 32 + 2 * 38);
+        assert_eq!(&b[0..8], &[0xcd, 0xab, 0, 0, 0, 0, 0, 0]);
+        assert_eq!(&b[8..12], &[4, 0, 0, 0]); // VISIT
+        assert_eq!(&b[16..20], &[0xff; 4]); // tool -1
+        assert_eq!(&b[24..28], &[1, 0, 0, 0x80]); // agent bit + object 0
+        let mut back = EmpRequest::boxed();
+        wire::read_request(&b, &mut back).unwrap();
+        assert_eq!((back.kind, back.count, back.tool, back.seq), (4, 2, -1, 41));
+        assert_eq!(back.objects, AGENT_BIT | 1);
+        assert_eq!(back.states[1], [5; STATE_BYTES]);
+        assert_eq!(back.states[2], [0; STATE_BYTES]);
+        // Cut short, one byte too many, too many states: refused with a sentence.
+        assert!(wire::read_request(&b[..b.len() - 1], &mut back).is_err());
+        let mut long = b.clone();
+        long.push(0);
+        assert!(wire::read_request(&long, &mut back).is_err());
+        let mut huge = b.clone();
+        huge[12..16].copy_from_slice(&(MAX_BATCH as u32 + 1).to_le_bytes());
+        assert!(wire::read_request(&huge, &mut back)
+            .unwrap_err()
+            .contains("at most 1024"));
+        assert!(wire::read_request(&b[..31], &mut back).is_err());
+    }
+
+    #[test]
+    fn answers_keep_values_statuses_and_the_description() {
+        let mut r = EmpResponse::boxed();
+        r.status = status::OK;
+        r.count = 3;
+        r.seq = 9;
+        r.values[..3].copy_from_slice(&[0.0, 1.5849625, 2.0]);
+        r.item_status[..3].copy_from_slice(&[0, 1, 0]);
+        put_name(&mut r.describe.world, "exp2");
+        put_name(&mut r.describe.tools[1], "pickaxe");
+        r.describe.world_hash = 77;
+        r.describe.tool = TOOL_ALL;
+        r.describe.horizon_equipped = 4;
+        let b = wire::response(&r);
+        assert_eq!(b.len(), 16 + 3 * 4 + 3 + wire::DESCRIBE_BYTES);
+        assert_eq!(wire::DESCRIBE_BYTES, 1136);
+        assert_eq!(&b[20..24], &1.5849625f32.to_le_bytes());
+        let mut back = EmpResponse::boxed();
+        wire::read_response(&b, &mut back).unwrap();
+        assert_eq!(&back.values[..3], &[0.0, 1.5849625, 2.0]);
+        assert_eq!(&back.item_status[..3], &[0, 1, 0]);
+        assert_eq!(get_name(&back.describe.world), "exp2");
+        assert_eq!(get_name(&back.describe.tools[1]), "pickaxe");
+        assert_eq!(back.describe.tool, TOOL_ALL);
+        assert_eq!(back.describe.horizon_equipped, 4);
+        assert_eq!(back.describe.world_hash, 77);
+        assert!(wire::read_response(&b[..b.len() - 1], &mut back).is_err());
+    }
 }

@@ -46,6 +46,15 @@ use crate::{Episode, State};
 
 /// Most actor processes of one run.
 pub const MAX_ACTORS: usize = 64;
+/// Actor ids of remote hosts: host h (1, 2, ...) runs actors `h * HOST_STRIDE + j`;
+/// host 0 is the learner's own.
+pub const HOST_STRIDE: u32 = 1024;
+
+/// The host an actor id belongs to (0 = the learner's host).
+pub fn host_of(actor: u32) -> u32 {
+    actor / HOST_STRIDE
+}
+
 /// Chunks the learner's queue holds per actor before actors block.
 pub const CHUNK_QUEUE: usize = 4;
 /// Bytes of one world's episode record in `env_state`.
@@ -101,6 +110,104 @@ pub struct ChunkHeader {
     pub len: u64,
 }
 
+/// Little-endian writer/reader for the wire forms of the headers below (messages
+/// between hosts carry them in front of the payload; shared memory carries the structs).
+struct Wire<'a> {
+    buf: &'a [u8],
+    at: usize,
+}
+
+impl Wire<'_> {
+    fn take<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let b = self.buf.get(self.at..self.at + N)?;
+        self.at += N;
+        b.try_into().ok()
+    }
+    fn u64(&mut self) -> Option<u64> {
+        self.take().map(u64::from_le_bytes)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.take().map(u32::from_le_bytes)
+    }
+    fn f64(&mut self) -> Option<f64> {
+        self.take().map(f64::from_le_bytes)
+    }
+}
+
+impl ChunkHeader {
+    /// Bytes of [`ChunkHeader::to_wire`].
+    pub const WIRE_BYTES: usize = 120;
+
+    /// The header as little-endian bytes, field by field in declaration order.
+    pub fn to_wire(&self) -> [u8; Self::WIRE_BYTES] {
+        let mut out = [0u8; Self::WIRE_BYTES];
+        let mut at = 0;
+        let mut put = |b: &[u8]| {
+            out[at..at + b.len()].copy_from_slice(b);
+            at += b.len();
+        };
+        for v in [self.run, self.world_hash, self.seq, self.policy_version] {
+            put(&v.to_le_bytes());
+        }
+        for v in [
+            self.actor,
+            self.incarnation,
+            self.envs,
+            self.steps,
+            self.cells,
+            self.flags,
+            self.actions,
+            self.episodes,
+            self.successes,
+            self.pickups,
+            self.e_positive,
+            self.reserved,
+        ] {
+            put(&v.to_le_bytes());
+        }
+        for v in [
+            self.ext_return_sum,
+            self.int_return_sum,
+            self.length_sum,
+            self.int_reward_sum,
+        ] {
+            put(&v.to_le_bytes());
+        }
+        put(&self.len.to_le_bytes());
+        out
+    }
+
+    /// Read a header written by [`ChunkHeader::to_wire`] from the front of `bytes`
+    /// (None when there are too few). The values are checked later, as for chunks
+    /// from shared memory ([`ChunkLayout::validate`]).
+    pub fn from_wire(bytes: &[u8]) -> Option<ChunkHeader> {
+        let mut r = Wire { buf: bytes, at: 0 };
+        Some(ChunkHeader {
+            run: r.u64()?,
+            world_hash: r.u64()?,
+            seq: r.u64()?,
+            policy_version: r.u64()?,
+            actor: r.u32()?,
+            incarnation: r.u32()?,
+            envs: r.u32()?,
+            steps: r.u32()?,
+            cells: r.u32()?,
+            flags: r.u32()?,
+            actions: r.u32()?,
+            episodes: r.u32()?,
+            successes: r.u32()?,
+            pickups: r.u32()?,
+            e_positive: r.u32()?,
+            reserved: r.u32()?,
+            ext_return_sum: r.f64()?,
+            int_return_sum: r.f64()?,
+            length_sum: r.f64()?,
+            int_reward_sum: r.f64()?,
+            len: r.u64()?,
+        })
+    }
+}
+
 /// Metadata of a weights message.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[type_name("fulcrum::WeightsHeader")]
@@ -114,6 +221,34 @@ pub struct WeightsHeader {
     pub version: u64,
     /// Floats in the payload.
     pub len: u64,
+}
+
+impl WeightsHeader {
+    /// Bytes of [`WeightsHeader::to_wire`].
+    pub const WIRE_BYTES: usize = 32;
+
+    /// The header as little-endian bytes (run, world hash, version, len).
+    pub fn to_wire(&self) -> [u8; Self::WIRE_BYTES] {
+        let mut out = [0u8; Self::WIRE_BYTES];
+        for (i, v) in [self.run, self.world_hash, self.version, self.len]
+            .into_iter()
+            .enumerate()
+        {
+            out[i * 8..(i + 1) * 8].copy_from_slice(&v.to_le_bytes());
+        }
+        out
+    }
+
+    /// Read a header written by [`WeightsHeader::to_wire`] (None when too short).
+    pub fn from_wire(bytes: &[u8]) -> Option<WeightsHeader> {
+        let mut r = Wire { buf: bytes, at: 0 };
+        Some(WeightsHeader {
+            run: r.u64()?,
+            world_hash: r.u64()?,
+            version: r.u64()?,
+            len: r.u64()?,
+        })
+    }
 }
 
 /// A section of a chunk's payload.
@@ -434,6 +569,53 @@ pub fn wake_service(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn headers_have_a_fixed_little_endian_wire_form() {
+        let h = ChunkHeader {
+            run: 0x0102_0304_0506_0708,
+            world_hash: 9,
+            seq: 10,
+            policy_version: 11,
+            actor: 1025,
+            incarnation: 2,
+            envs: 8,
+            steps: 128,
+            cells: 99,
+            flags: 4,
+            actions: 12,
+            episodes: 3,
+            successes: 1,
+            pickups: 2,
+            e_positive: 77,
+            reserved: 0,
+            ext_return_sum: 1.5,
+            int_return_sum: -0.25,
+            length_sum: 300.0,
+            int_reward_sum: 2.0,
+            len: 65536,
+        };
+        let b = h.to_wire();
+        // Offsets by hand: 4 u64 (0..32), 12 u32 (32..80), 4 f64 (80..112), len (112..120).
+        assert_eq!(&b[0..8], &[8, 7, 6, 5, 4, 3, 2, 1]);
+        assert_eq!(&b[32..36], &[1, 4, 0, 0]); // actor 1025 = 0x401
+        assert_eq!(&b[72..76], &[77, 0, 0, 0]); // e_positive
+        assert_eq!(&b[80..88], &1.5f64.to_le_bytes());
+        assert_eq!(&b[112..120], &[0, 0, 1, 0, 0, 0, 0, 0]); // 65536
+        assert_eq!(ChunkHeader::from_wire(&b), Some(h));
+        assert_eq!(ChunkHeader::from_wire(&b[..119]), None);
+        let w = WeightsHeader {
+            run: 1,
+            world_hash: 2,
+            version: 3,
+            len: 4,
+        };
+        let wb = w.to_wire();
+        assert_eq!(wb[16], 3);
+        assert_eq!(wb[24], 4);
+        assert_eq!(WeightsHeader::from_wire(&wb), Some(w));
+        assert_eq!(WeightsHeader::from_wire(&wb[..31]), None);
+    }
 
     #[test]
     fn sections_tile_the_payload() {

@@ -7,13 +7,21 @@ use fulcrum_shared::{load_world, ObjectSet, ToolChoice, World};
 
 use crate::cli::{Command, MethodArg};
 
+#[cfg(feature = "multihost")]
+pub mod actor_host;
 pub mod bench;
+#[cfg(feature = "multihost")]
+pub mod bridge;
 pub mod empowerment;
 pub mod experiment;
 pub mod record;
 pub mod serve;
 pub mod train;
 pub mod world;
+
+/// What a command of the `multihost` feature says in a build without it.
+pub const NO_MULTIHOST: &str =
+    "{} needs fulcrum built with the multihost feature: cargo build --release --features multihost";
 
 /// A mistake in what the user asked for: one sentence, exit code 2.
 #[derive(Debug, thiserror::Error)]
@@ -60,6 +68,14 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Train(a) => train::run(&a),
         Command::Experiment(a) => experiment::run(&a),
         Command::Record(a) => record::run(&a),
+        #[cfg(feature = "multihost")]
+        Command::ActorHost(a) => actor_host::run(&a),
+        #[cfg(feature = "multihost")]
+        Command::Bridge(a) => bridge::run(&a),
+        #[cfg(not(feature = "multihost"))]
+        Command::ActorHost(_) => bad(NO_MULTIHOST.replace("{}", "actor-host")),
+        #[cfg(not(feature = "multihost"))]
+        Command::Bridge(_) => bad(NO_MULTIHOST.replace("{}", "bridge")),
         Command::Learner(a) => train::learner_process(&a),
         Command::Actor(a) => train::actor_process(&a),
         Command::BenchClient {

@@ -32,7 +32,7 @@ use crate::cli::{ChildArgs, TrainArgs};
 use crate::commands::{bad, world};
 
 /// Set by SIGINT / SIGTERM.
-static STOP: AtomicBool = AtomicBool::new(false);
+pub(crate) static STOP: AtomicBool = AtomicBool::new(false);
 /// Which signal set [`STOP`] (0 = none).
 static SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
 
@@ -51,7 +51,7 @@ extern "C" fn on_signal(sig: libc::c_int) {
     STOP.store(true, Ordering::Relaxed);
 }
 
-fn install_signal_handlers() {
+pub(crate) fn install_signal_handlers() {
     // SAFETY: the handler only stores to atomics, which is async-signal-safe.
     unsafe {
         libc::signal(
@@ -66,7 +66,7 @@ fn install_signal_handlers() {
 }
 
 /// A child: stop when the supervisor dies (and if it already has, stop now).
-fn die_with_parent(parent: u32) {
+pub(crate) fn die_with_parent(parent: u32) {
     // SAFETY: prctl with PR_SET_PDEATHSIG takes a signal number; getppid is always safe.
     unsafe {
         libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
@@ -125,6 +125,9 @@ pub fn run(a: &TrainArgs) -> Result<()> {
         ns,
         exe: std::env::current_exe().context("cannot find the fulcrum executable")?,
         service: None,
+        bridge: None,
+        listen: a.listen.clone(),
+        zenoh: a.zenoh.clone(),
         learner: None,
         actors: Vec::new(),
         restarts: 0,
@@ -177,6 +180,12 @@ pub fn run(a: &TrainArgs) -> Result<()> {
 
 /// The resolved configuration, its world, the run's paths, and whether it is a resume.
 fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
+    if a.listen.is_some() && !cfg!(feature = "multihost") {
+        return bad(super::NO_MULTIHOST.replace("{}", "--listen"));
+    }
+    if a.stall_timeout.is_some() && a.listen.is_none() {
+        return bad("--stall-timeout applies to runs with --listen (actors on other hosts)");
+    }
     if let Some(dir) = &a.resume {
         let paths = RunPaths { dir: dir.clone() };
         if !paths.config().exists() {
@@ -235,6 +244,12 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         }
         if let Some(t) = a.learner_threads {
             cfg.learner_threads = t;
+        }
+        if a.listen.is_some() {
+            cfg.remote = true;
+        }
+        if let Some(t) = a.stall_timeout {
+            cfg.stall_timeout_s = t;
         }
         cfg.check().map_err(super::BadInput)?;
         let w = world(&cfg.world)?;
@@ -347,6 +362,8 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         },
         max_policy_lag: a.max_policy_lag.unwrap_or(0),
         checkpoint_every: a.checkpoint_every.unwrap_or(10),
+        remote: a.listen.is_some(),
+        stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
         ppo: {
             let d = PpoConfig::default();
             PpoConfig {
@@ -448,6 +465,10 @@ struct Supervisor {
     ns: String,
     exe: PathBuf,
     service: Option<Child>,
+    /// `fulcrum bridge --listen` (runs with `--listen`).
+    bridge: Option<Child>,
+    listen: Option<String>,
+    zenoh: crate::cli::ZenohArgs,
     learner: Option<(Child, mpsc::Receiver<String>)>,
     actors: Vec<(Option<Child>, u32)>,
     restarts: u32,
@@ -550,6 +571,67 @@ impl Supervisor {
         Ok(())
     }
 
+    /// The bridge to other hosts; returns once it listens.
+    fn start_bridge(&mut self) -> Result<()> {
+        let Some(addr) = self.listen.clone() else {
+            return Ok(());
+        };
+        let mut args = vec![
+            "bridge".to_string(),
+            "--listen".into(),
+            addr.clone(),
+            "--run".into(),
+            self.paths.dir.display().to_string(),
+            "--namespace".into(),
+            self.ns.clone(),
+            "--parent".into(),
+            std::process::id().to_string(),
+            "--session-timeout".into(),
+            self.zenoh.session_timeout.to_string(),
+        ];
+        if let Some(c) = &self.zenoh.zenoh_config {
+            args.extend(["--zenoh-config".into(), c.display().to_string()]);
+        }
+        let mut cmd = self.child(&args, 1);
+        cmd.stdout(Stdio::piped());
+        let mut child = cmd.spawn().context("cannot start the bridge")?;
+        let out = child.stdout.take().context("bridge stdout")?;
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            for line in BufReader::new(out).lines().map_while(|l| l.ok()) {
+                if line.contains("ready") {
+                    let _ = tx.send(());
+                }
+            }
+        });
+        loop {
+            if rx.recv_timeout(Duration::from_millis(50)).is_ok() {
+                break;
+            }
+            if let Some(s) = child.try_wait()? {
+                if s.code() == Some(2) {
+                    return bad(format!(
+                        "--listen {addr}: the bridge refused it (its message is above)"
+                    ));
+                }
+                anyhow::bail!(
+                    "the bridge stopped before it listened ({})",
+                    describe_status(s)
+                );
+            }
+            if STOP.load(Ordering::Relaxed) {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Ok(());
+            }
+        }
+        eprintln!(
+            "fulcrum train: actors on other hosts may join: fulcrum actor-host --connect {addr}"
+        );
+        self.bridge = Some(child);
+        Ok(())
+    }
+
     fn start_learner(&mut self) -> Result<()> {
         let mut args = self.child_args("__learner");
         if let Some(n) = self.stop_after {
@@ -592,6 +674,7 @@ impl Supervisor {
             }
         }
         self.start_learner()?;
+        self.start_bridge()?;
         for i in 0..self.cfg.actors {
             let c = self.start_actor(i, 0)?;
             self.actors.push((Some(c), 0));
@@ -663,6 +746,26 @@ impl Supervisor {
                 self.actors[i] = (Some(c), inc);
             }
         }
+        let bridge_status = match &mut self.bridge {
+            Some(c) => c.try_wait()?,
+            None => None,
+        };
+        if let Some(s) = bridge_status {
+            self.restarts += 1;
+            if self.restarts > self.max_restarts {
+                anyhow::bail!(
+                    "the bridge stopped ({}) and the run used up its {} restarts",
+                    describe_status(s),
+                    self.max_restarts
+                );
+            }
+            progress.note(&format!(
+                "the bridge stopped ({}); restarting it",
+                describe_status(s)
+            ));
+            self.bridge = None;
+            self.start_bridge()?;
+        }
         let service_status = match &mut self.service {
             Some(c) => c.try_wait()?,
             None => None,
@@ -696,6 +799,9 @@ impl Supervisor {
         all.extend(self.actors.drain(..).filter_map(|(c, _)| c));
         if let Some(s) = self.service.take() {
             all.push(s);
+        }
+        if let Some(b) = self.bridge.take() {
+            all.push(b);
         }
         for c in &all {
             signal(c, libc::SIGTERM);
@@ -855,11 +961,19 @@ pub fn learner_process(a: &ChildArgs) -> Result<()> {
 /// `fulcrum __actor`.
 pub fn actor_process(a: &ChildArgs) -> Result<()> {
     let (cfg, w, paths) = child_setup(a)?;
+    let run_tag = match &a.run_tag {
+        Some(t) => match u64::from_str_radix(t, 16) {
+            Ok(v) => Some(v),
+            Err(_) => return bad(format!("--run-tag '{t}' is not a hex number")),
+        },
+        None => None,
+    };
     fulcrum_actors::run_actor(
         &w,
         &cfg,
         &paths.checkpoint(),
         &a.namespace,
+        run_tag,
         fulcrum_actors::ActorId {
             index: a.index,
             incarnation: a.incarnation,

@@ -1,0 +1,210 @@
+//! `fulcrum actor-host` (feature `multihost`): actors on this host for a run whose
+//! learner is on another.
+//!
+//! ```text
+//! fulcrum actor-host --connect ADDR     supervisor
+//!  |- fulcrum bridge --connect ADDR     joins the run, writes its config and world into
+//!  |                                    DIR, forwards chunks / weights / lookups
+//!  '- fulcrum __actor x K               this host's actors (ids host * 1024 + j), on
+//!                                       the host's own shared-memory namespace
+//! ```
+//!
+//! Crashed actors are restarted (bounded); a lost link is the bridge's business (zenoh
+//! reconnects, the actors wait for weights meanwhile). The host stops when the run is
+//! over (the learner's bridge says so), on SIGINT/SIGTERM, or when the bridge fails.
+
+use std::io::{BufRead, BufReader};
+use std::os::unix::process::CommandExt;
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::Ordering;
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+
+use crate::cli::ActorHostArgs;
+use crate::commands::bad;
+use crate::commands::bridge::{actor_id, default_dir, hostname, Joined};
+use crate::commands::train::{cores, install_signal_handlers, STOP};
+
+fn signal(c: &Child, sig: libc::c_int) {
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe {
+        libc::kill(c.id() as libc::pid_t, sig);
+    }
+}
+
+/// `fulcrum actor-host`.
+pub fn run(a: &ActorHostArgs) -> Result<()> {
+    install_signal_handlers();
+    let k = a.actors.unwrap_or_else(|| cores().saturating_sub(1).max(1));
+    if k == 0 || k > fulcrum_shared::traj::MAX_ACTORS {
+        return bad(format!(
+            "--actors {k} must be 1 to {}",
+            fulcrum_shared::traj::MAX_ACTORS
+        ));
+    }
+    let name = a.name.clone().unwrap_or_else(hostname);
+    let dir = a.dir.clone().unwrap_or_else(|| default_dir(&name));
+    let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
+    let mut args: Vec<String> = vec![
+        "bridge".into(),
+        "--connect".into(),
+        a.connect.clone(),
+        "--run".into(),
+        dir.display().to_string(),
+        "--name".into(),
+        name.clone(),
+        "--give-up".into(),
+        a.give_up.to_string(),
+        "--session-timeout".into(),
+        a.zenoh.session_timeout.to_string(),
+        "--parent".into(),
+        std::process::id().to_string(),
+    ];
+    if let Some(w) = &a.world {
+        args.extend(["--world".into(), w.clone()]);
+    }
+    if let Some(c) = &a.zenoh.zenoh_config {
+        args.extend(["--zenoh-config".into(), c.display().to_string()]);
+    }
+    let mut bridge = Command::new(&exe)
+        .args(&args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .context("cannot start the bridge")?;
+    let out = bridge.stdout.take().context("bridge stdout")?;
+    let (tx, rx) = mpsc::channel::<String>();
+    std::thread::spawn(move || {
+        for line in BufReader::new(out).lines().map_while(|l| l.ok()) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    eprintln!(
+        "fulcrum actor-host: '{name}' joining the run at {} with {k} actors",
+        a.connect
+    );
+    // Wait for the bridge to join.
+    let joined = loop {
+        if let Ok(line) = rx.recv_timeout(Duration::from_millis(50)) {
+            if let Some(j) = Joined::parse(&line) {
+                break j;
+            }
+            continue;
+        }
+        if let Some(s) = bridge.try_wait()? {
+            return match s.code() {
+                Some(2) => bad("the bridge refused to join (its message is above)"),
+                _ => Err(anyhow::anyhow!("the bridge stopped before it joined ({s})")),
+            };
+        }
+        if STOP.load(Ordering::Relaxed) {
+            signal(&bridge, libc::SIGTERM);
+            let _ = bridge.wait();
+            return Ok(());
+        }
+    };
+    eprintln!(
+        "fulcrum actor-host: joined run {} as host {}; actors {}..{}",
+        joined.local_ns,
+        joined.host,
+        actor_id(joined.host, 0),
+        actor_id(joined.host, k - 1)
+    );
+    let start = |j: usize, inc: u32| -> Result<Child> {
+        Command::new(&exe)
+            .args([
+                "__actor".to_string(),
+                "--run".into(),
+                dir.display().to_string(),
+                "--namespace".into(),
+                joined.local_ns.clone(),
+                "--parent".into(),
+                std::process::id().to_string(),
+                "--index".into(),
+                actor_id(joined.host, j).to_string(),
+                "--incarnation".into(),
+                inc.to_string(),
+                "--run-tag".into(),
+                format!("{:016x}", joined.run_tag),
+            ])
+            .env("RAYON_NUM_THREADS", "1")
+            .env("CANDLE_NUM_THREADS", "1")
+            .stdin(Stdio::null())
+            .process_group(0)
+            .spawn()
+            .with_context(|| format!("cannot start actor {j}"))
+    };
+    let mut actors: Vec<(Child, u32)> = Vec::with_capacity(k);
+    for j in 0..k {
+        actors.push((start(j, 0)?, 0));
+    }
+    let mut restarts = 0u32;
+    let mut over = false;
+    let result = loop {
+        while let Ok(line) = rx.try_recv() {
+            if line.contains("the run is over") {
+                over = true;
+            }
+        }
+        if STOP.load(Ordering::Relaxed) {
+            break Ok(());
+        }
+        if let Some(s) = bridge.try_wait()? {
+            while let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
+                over |= line.contains("the run is over");
+            }
+            break if over || s.success() {
+                eprintln!("fulcrum actor-host: the run is over");
+                Ok(())
+            } else {
+                Err(anyhow::anyhow!("the bridge stopped ({s})"))
+            };
+        }
+        let mut failure = None;
+        for (j, slot) in actors.iter_mut().enumerate() {
+            if let Some(s) = slot.0.try_wait()? {
+                restarts += 1;
+                if restarts > a.max_restarts {
+                    failure = Some(anyhow::anyhow!(
+                        "actor {j} stopped ({s}) and the host used up its {} restarts",
+                        a.max_restarts
+                    ));
+                    break;
+                }
+                eprintln!("fulcrum actor-host: actor {j} stopped ({s}); restarting it");
+                let inc = slot.1 + 1;
+                *slot = (start(j, inc)?, inc);
+            }
+        }
+        if let Some(e) = failure {
+            break Err(e);
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    // Stop actors, then the bridge.
+    let mut all: Vec<Child> = actors.into_iter().map(|(c, _)| c).collect();
+    all.push(bridge);
+    for c in &all {
+        signal(c, libc::SIGTERM);
+    }
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(4) {
+        if all.iter_mut().all(|c| matches!(c.try_wait(), Ok(Some(_)))) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for c in &mut all {
+        if !matches!(c.try_wait(), Ok(Some(_))) {
+            let _ = c.kill();
+        }
+        let _ = c.wait();
+    }
+    fulcrum_empowerment::service::clean_dead_nodes();
+    result
+}
