@@ -2,5 +2,7 @@
 
 mod cli;
 mod experiment;
+#[cfg(feature = "multihost")]
+mod multihost;
 mod service;
 mod train;

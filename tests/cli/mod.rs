@@ -560,3 +560,34 @@ fn record_refuses_a_directory_without_a_run() {
     assert!(err.contains("no config.toml there"), "{err}");
     let _ = std::fs::remove_dir_all(&d);
 }
+
+#[cfg(not(feature = "multihost"))]
+#[test]
+fn multihost_commands_say_which_build_they_need() {
+    for args in [
+        &["train", "room", "--listen", "127.0.0.1:7447"][..],
+        &["actor-host", "--connect", "127.0.0.1:7447"][..],
+        &["bridge", "--connect", "127.0.0.1:7447", "--run", "x"][..],
+    ] {
+        let out = fulcrum(args);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("needs fulcrum built with the multihost feature")
+                && err.contains("--features multihost")
+                && err.lines().count() == 1,
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn a_stall_timeout_without_listen_is_refused() {
+    let out = fulcrum(&["train", "room", "--stall-timeout", "5"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--stall-timeout applies to runs with --listen"),
+        "{err}"
+    );
+}

@@ -1,0 +1,415 @@
+//! One run across hosts (feature `multihost`): a learner host (`train --listen`) and an
+//! actor host (`actor-host --connect`), real processes, real zenoh sessions over TCP,
+//! real iceoryx2 shared memory on each side.
+//!
+//! The first test puts both hosts on 127.0.0.1. The second makes the actor host a
+//! network namespace with its own /dev/shm and /tmp (`scripts/two-hosts.sh`), takes the
+//! link down for 20 s mid-run, and checks that the learner goes on, counts the loss,
+//! and takes the host back; it needs root and iproute2 and says so when skipped.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use fulcrum_learner::run::read_metrics;
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_fulcrum")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fulcrum-mh-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// A TCP port that was free a moment ago.
+fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}
+
+/// A child whose stderr and stdout lines are collected as they come.
+struct Proc {
+    child: Child,
+    lines: Arc<Mutex<Vec<String>>>,
+}
+
+impl Proc {
+    fn start(mut cmd: Command) -> Proc {
+        let mut child = cmd
+            .stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("starts");
+        let lines = Arc::new(Mutex::new(Vec::new()));
+        let out = child.stdout.take().unwrap();
+        let err = child.stderr.take().unwrap();
+        for pipe in [
+            Box::new(out) as Box<dyn std::io::Read + Send>,
+            Box::new(err) as Box<dyn std::io::Read + Send>,
+        ] {
+            let lines = lines.clone();
+            std::thread::spawn(move || {
+                for l in BufReader::new(pipe).lines().map_while(|l| l.ok()) {
+                    lines.lock().unwrap().push(l);
+                }
+            });
+        }
+        Proc { child, lines }
+    }
+
+    fn text(&self) -> String {
+        self.lines.lock().unwrap().join("\n")
+    }
+
+    fn wait_line(&self, needle: &str, limit: Duration) {
+        let t0 = Instant::now();
+        while !self.text().contains(needle) {
+            assert!(
+                t0.elapsed() < limit,
+                "no '{needle}' within {limit:?}; output:\n{}",
+                self.text()
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
+    fn finish(&mut self, limit: Duration) -> ExitStatus {
+        let t0 = Instant::now();
+        loop {
+            if let Some(s) = self.child.try_wait().unwrap() {
+                std::thread::sleep(Duration::from_millis(100)); // the last lines
+                return s;
+            }
+            if t0.elapsed() > limit {
+                let _ = self.child.kill();
+                let _ = self.child.wait();
+                panic!("did not finish in {limit:?}; output:\n{}", self.text());
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+}
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// `update,host,name,actors,chunks,env_steps,lost_chunks` rows.
+#[derive(Debug, Clone)]
+struct HostRow {
+    update: u64,
+    host: u32,
+    name: String,
+    chunks: u64,
+    env_steps: u64,
+}
+
+fn host_rows(dir: &Path) -> Vec<HostRow> {
+    let text = std::fs::read_to_string(dir.join("hosts.csv")).unwrap_or_default();
+    text.lines()
+        .skip(1)
+        .filter_map(|l| {
+            let v: Vec<&str> = l.split(',').collect();
+            (v.len() == 7).then(|| HostRow {
+                update: v[0].parse().unwrap(),
+                host: v[1].parse().unwrap(),
+                name: v[2].to_string(),
+                chunks: v[4].parse().unwrap(),
+                env_steps: v[5].parse().unwrap(),
+            })
+        })
+        .collect()
+}
+
+fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !f() {
+        assert!(
+            t0.elapsed() < limit,
+            "{what} did not happen within {limit:?}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Small chunks: 4 worlds x 32 steps = 128 env steps a chunk.
+const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
+
+#[test]
+fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
+    let dir = scratch("loop");
+    let far = scratch("loop-far");
+    let addr = format!("127.0.0.1:{}", free_port());
+    let mut train = Command::new(bin());
+    train
+        .args([
+            "train", "exp2", "--actors", "1", "--steps", "300032", "--listen", &addr,
+        ])
+        .args(SMALL)
+        .arg("--out")
+        .arg(&dir);
+    let mut learner = Proc::start(train);
+    learner.wait_line("may join", Duration::from_secs(60));
+
+    // A host whose world is not the run's is refused before it runs anything.
+    let wrong = Command::new(bin())
+        .args(["actor-host", "--connect", &addr, "--name", "wrong"])
+        .args(["--world", "exp1-tree", "--actors", "1"])
+        .arg("--dir")
+        .arg(far.join("wrong"))
+        .output()
+        .unwrap();
+    let says = String::from_utf8_lossy(&wrong.stderr);
+    assert_eq!(wrong.status.code(), Some(2), "{says}");
+    assert!(
+        says.contains("trains world 'exp2'") && says.contains("not 'exp1-tree'"),
+        "{says}"
+    );
+    assert!(!far.join("wrong/config.toml").exists());
+
+    let mut host = Command::new(bin());
+    host.args([
+        "actor-host",
+        "--connect",
+        &addr,
+        "--name",
+        "near",
+        "--actors",
+        "1",
+    ])
+    .args(["--world", "exp2", "--dir"])
+    .arg(&far);
+    let mut host = Proc::start(host);
+    let status = learner.finish(Duration::from_secs(240));
+    assert!(status.success(), "{}", learner.text());
+    // The learner's bridge says the run is over; the host stops by itself.
+    let hs = host.finish(Duration::from_secs(30));
+    assert!(hs.success(), "{}", host.text());
+    assert!(host.text().contains("the run is over"), "{}", host.text());
+
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    let last = rows.last().unwrap();
+    // The budget is met in whole chunks of 128 steps, by both hosts together.
+    assert!(last.env_steps >= 300_032 && last.env_steps < 300_032 + 2 * 128);
+    assert_eq!(last.env_steps % 128, 0);
+    let hosts = host_rows(&dir);
+    // "wrong" asked first and was given index 1: "near" is host 2.
+    let remote: Vec<&HostRow> = hosts.iter().filter(|r| r.host == 2).collect();
+    assert!(
+        remote.len() >= 20,
+        "the remote actor took part in {} updates",
+        remote.len()
+    );
+    assert!(remote
+        .iter()
+        .all(|r| r.name == "near" && r.chunks == 1 && r.env_steps == 128));
+    // Per-host steps add up to the run's.
+    assert_eq!(
+        hosts.iter().map(|r| r.env_steps).sum::<u64>(),
+        last.env_steps
+    );
+    // The metrics say the same: one remote actor in exactly those updates.
+    let with_remote = rows.iter().filter(|r| r.remote_actors == 1).count();
+    assert_eq!(with_remote, remote.len());
+    // Nothing lost on loopback. Joining costs at most two stale chunks: the first is
+    // made with whatever weights the host had when it joined; once it has arrived the
+    // learner waits for the host, so only the second can still be one version behind.
+    assert_eq!(last.lost_chunks, 0);
+    assert!(last.dropped_chunks <= 2, "dropped {}", last.dropped_chunks);
+    // The host got the run's settings and world, and its index.
+    let names = std::fs::read_to_string(dir.join("hosts.txt")).unwrap();
+    assert!(names.lines().any(|l| l.starts_with("2 near ")), "{names}");
+    assert!(far.join("config.toml").exists() && far.join("world.toml").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&far);
+}
+
+/// The emulated second host of `scripts/two-hosts.sh`, removed on drop.
+struct OtherHost {
+    net: u32,
+    ns: String,
+}
+
+impl OtherHost {
+    fn script(&self) -> Command {
+        let mut c = Command::new(concat!(env!("CARGO_MANIFEST_DIR"), "/scripts/two-hosts.sh"));
+        c.env("FULCRUM_NET", self.net.to_string())
+            .env("FULCRUM_NETNS", &self.ns);
+        c
+    }
+
+    fn up() -> Option<OtherHost> {
+        let root = Command::new("id")
+            .arg("-u")
+            .output()
+            .is_ok_and(|o| String::from_utf8_lossy(&o.stdout).trim() == "0");
+        let tools = ["ip", "unshare", "mount"].iter().all(|t| {
+            Command::new("sh")
+                .args(["-c", &format!("command -v {t}")])
+                .output()
+                .is_ok_and(|o| o.status.success())
+        });
+        if !root || !tools {
+            return None;
+        }
+        let pid = std::process::id();
+        let h = OtherHost {
+            net: 100 + pid % 150,
+            ns: format!("fulcrum-t{pid}"),
+        };
+        let _ = h.script().arg("down").status();
+        let ok = h.script().arg("up").status().is_ok_and(|s| s.success());
+        ok.then_some(h)
+    }
+
+    fn here(&self) -> String {
+        format!("10.213.{}.1", self.net)
+    }
+}
+
+impl Drop for OtherHost {
+    fn drop(&mut self) {
+        let _ = self.script().arg("down").status();
+    }
+}
+
+#[test]
+fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
+    let Some(other) = OtherHost::up() else {
+        eprintln!("skipped: the link-cut test needs root, iproute2 and network namespaces");
+        return;
+    };
+    let dir = scratch("cut");
+    let addr = format!("{}:{}", other.here(), free_port());
+    let mut train = Command::new(bin());
+    train
+        .args([
+            "train", "exp2", "--actors", "1", "--steps", "99999872", "--listen", &addr,
+        ])
+        .args(["--stall-timeout", "2", "--session-timeout", "3"])
+        .args(SMALL)
+        .arg("--out")
+        .arg(&dir);
+    let mut learner = Proc::start(train);
+    learner.wait_line("may join", Duration::from_secs(60));
+    let mut host = other.script();
+    host.arg("exec")
+        .arg(bin())
+        .args([
+            "actor-host",
+            "--connect",
+            &addr,
+            "--name",
+            "far",
+            "--actors",
+            "1",
+        ])
+        .args(["--session-timeout", "3", "--dir", "/tmp/far"]);
+    let mut host = Proc::start(host);
+
+    let joined = |after: u64| {
+        let dir = dir.clone();
+        move || {
+            host_rows(&dir)
+                .iter()
+                .any(|r| r.host == 1 && r.chunks > 0 && r.update > after)
+        }
+    };
+    wait_until(Duration::from_secs(60), "the far host joining", joined(0));
+    let before = read_metrics(&dir.join("metrics.csv")).unwrap();
+    let (u_cut, dropped_before) = before.last().map(|r| (r.update, r.dropped_chunks)).unwrap();
+    assert!(other
+        .script()
+        .args(["cut", "20"])
+        .status()
+        .unwrap()
+        .success());
+    let u_up = read_metrics(&dir.join("metrics.csv"))
+        .unwrap()
+        .last()
+        .unwrap()
+        .update;
+    wait_until(
+        Duration::from_secs(90),
+        "the far host rejoining",
+        joined(u_up),
+    );
+    // Stop the run (SIGINT: checkpoint, exit 130); the far host stops with it.
+    assert!(Command::new("kill")
+        .args(["-INT", &learner.child.id().to_string()])
+        .status()
+        .unwrap()
+        .success());
+    let s = learner.finish(Duration::from_secs(60));
+    assert_eq!(s.code(), Some(130), "{}", learner.text());
+    let hs = host.finish(Duration::from_secs(30));
+    assert!(
+        hs.success() && host.text().contains("the run is over"),
+        "{}",
+        host.text()
+    );
+
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    let hosts = host_rows(&dir);
+    // The learner went on without the far host while the link was down: updates with
+    // only the local actor, many of them (20 s, a 2 s stall timeout).
+    let during: Vec<u64> = rows
+        .iter()
+        .filter(|r| r.update > u_cut + 5 && r.update <= u_up)
+        .map(|r| r.update)
+        .collect();
+    assert!(during.len() > 50, "{} updates during the cut", during.len());
+    let far_during: Vec<&HostRow> = hosts
+        .iter()
+        .filter(|h| h.host == 1 && h.chunks > 0 && during.contains(&h.update))
+        .take(5)
+        .collect();
+    assert!(
+        far_during.is_empty(),
+        "the far host's chunks were used while its link was down (updates {}..={u_up}): {far_during:?}",
+        u_cut + 6
+    );
+    // The chunk in flight when the link went down never counts: it is lost (a gap in
+    // the far actor's sequence) or, arriving late, dropped as stale.
+    let last = rows.last().unwrap();
+    let lost = last.lost_chunks + (last.dropped_chunks - dropped_before);
+    assert!(
+        lost >= 1,
+        "lost {} dropped {}",
+        last.lost_chunks,
+        last.dropped_chunks
+    );
+    eprintln!(
+        "link cut: {} updates without the far host; {} chunks lost, {} dropped as stale",
+        during.len(),
+        last.lost_chunks,
+        last.dropped_chunks - dropped_before
+    );
+    // Every update used whole chunks only: steps grow by 128 per chunk used.
+    for w in rows.windows(2) {
+        let chunks: u64 = hosts
+            .iter()
+            .filter(|h| h.update == w[1].update)
+            .map(|h| h.chunks)
+            .sum();
+        assert_eq!(w[1].env_steps - w[0].env_steps, chunks * 128);
+    }
+    // The far host is back: it took part in updates after the link came up.
+    assert!(hosts
+        .iter()
+        .any(|h| h.host == 1 && h.update > u_up && h.name == "far"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
