@@ -10,6 +10,9 @@
 #   scripts/two-hosts.sh down           remove the namespace and the link
 #   scripts/two-hosts.sh demo [STEPS]   a learner here and an actor host there, with a
 #                                       20 s cut mid-run (needs a multihost build)
+#   scripts/two-hosts.sh bench          the BENCHMARKS.md figures: `bench --remote` against
+#                                       a peer there, and training steps/s with one actor
+#                                       host here (learner + 1 actor) and one there
 #
 # This host is 10.213.$FULCRUM_NET.1, the other 10.213.$FULCRUM_NET.2 (FULCRUM_NET
 # defaults to 7; the namespace is $FULCRUM_NETNS, default fulcrum-b). Needs root and
@@ -78,8 +81,34 @@ case "${1:-}" in
     wait "$host" || true
     echo "per-host chunks: $out/hosts.csv"
     ;;
+  bench)
+    bin=${FULCRUM_BIN:-target/release/fulcrum}
+    out=${FULCRUM_DEMO_OUT:-runs/two-hosts-bench}
+    steps=${2:-1228800}
+    "$0" down
+    "$0" up
+    trap '"$0" down; kill $(jobs -p) 2>/dev/null || true' EXIT
+    "$0" exec "$bin" __remote-peer --listen "$THERE:7448" > /dev/null &
+    sleep 3
+    "$bin" bench --remote "$THERE:7448" --json "${FULCRUM_BENCH_JSON:-/dev/null}"
+    median() { # column 15 (sps) of metrics rows whose remote_actors (23) is $2, skipping update 1
+      awk -F, -v k="$2" 'NR > 2 && $23 == k { print $15 }' "$1" | sort -g |
+        awk '{ v[NR] = $1 } END { if (NR) printf "%.0f steps/s (median of %d updates)", v[int((NR + 1) / 2)], NR }'
+    }
+    rm -rf "$out" "$out-alone"
+    "$bin" train exp2 --actors 1 --steps "$steps" --out "$out-alone" > /dev/null 2>&1
+    "$bin" train exp2 --actors 1 --listen "$HERE:7447" --steps "$steps" --out "$out" > /dev/null 2>&1 &
+    learner=$!
+    sleep 1
+    "$0" exec "$bin" actor-host --connect "$HERE:7447" --name far --actors 1 --dir /tmp/far \
+      > /dev/null 2>&1 &
+    wait "$learner"
+    echo "training env steps/s, train exp2 --actors 1 (8 worlds x 128 steps a chunk):"
+    echo "  learner host alone:                          $(median "$out-alone/metrics.csv" 0)"
+    echo "  with an actor host (1 actor) in the other namespace: $(median "$out/metrics.csv" 1)"
+    ;;
   *)
-    sed -n '2,19p' "$0" | sed 's/^# \{0,1\}//'
+    sed -n '2,23p' "$0" | sed 's/^# \{0,1\}//'
     exit 2
     ;;
 esac

@@ -82,6 +82,13 @@ pub enum Command {
         #[arg(long)]
         times: usize,
     },
+    /// (bench helper) the far end of `bench --remote`: chunk sink and lookups.
+    #[command(hide = true, name = "__remote-peer")]
+    RemotePeer {
+        /// Where to listen (host:port or a zenoh locator).
+        #[arg(long)]
+        listen: String,
+    },
     /// (bench helper) echo Unix datagrams on a socket path until told to stop.
     #[command(hide = true, name = "__pingpong")]
     PingPong {
@@ -304,6 +311,11 @@ pub struct BenchArgs {
     /// Scaling study: leave out state counts above this (e.g. 1000000 on a small machine).
     #[arg(long, requires = "scaling")]
     pub max_states: Option<u64>,
+    /// The link between hosts instead (feature `multihost`): chunk throughput (64 KiB,
+    /// 1 MiB) and lookup round trips against a peer at ADDR (`fulcrum __remote-peer
+    /// --listen ADDR` there; `scripts/two-hosts.sh bench`), or one started on 127.0.0.1.
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "", conflicts_with = "scaling")]
+    pub remote: Option<String>,
 }
 
 /// `fulcrum train`

@@ -14,6 +14,8 @@ use serde_json::json;
 
 use crate::cli::BenchArgs;
 
+#[cfg(feature = "multihost")]
+pub mod remote;
 mod scaling;
 use crate::plot::write_atomic;
 
@@ -124,7 +126,19 @@ pub fn run(a: BenchArgs) -> Result<()> {
         m
     );
 
-    if a.scaling {
+    if let Some(addr) = &a.remote {
+        #[cfg(feature = "multihost")]
+        remote::run(
+            (!addr.is_empty()).then_some(addr.as_str()),
+            a.quick,
+            &mut figs,
+        )?;
+        #[cfg(not(feature = "multihost"))]
+        {
+            let _ = addr;
+            return super::bad(super::NO_MULTIHOST.replace("{}", "bench --remote"));
+        }
+    } else if a.scaling {
         scaling::run(&a.plots, a.max_states, &mut figs)?;
     } else {
         empowerment_exp2(reps, a.quick, &mut figs)?;
@@ -137,7 +151,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
 
     println!(
         "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
-        if a.quick {
+        if a.remote.is_some() {
+            " --remote"
+        } else if a.quick {
             " --quick"
         } else if a.scaling {
             " --scaling"

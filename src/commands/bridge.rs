@@ -203,11 +203,7 @@ pub fn run(a: &BridgeArgs) -> Result<()> {
 
 /// This machine's hostname (or `host`).
 pub fn hostname() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|s| s.trim().to_string())
-        .ok()
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| "host".into())
+    super::bridge_hostname()
 }
 
 /// Whether a host name can be used in a key expression and a CSV field.
@@ -437,7 +433,7 @@ fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohArgs) -> Result<()> {
 }
 
 /// Answer zenoh lookups with the run's local service: up to `MAX_IN_FLIGHT` at a time.
-fn serve_lookups(
+pub(crate) fn serve_lookups(
     q: &zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<zenoh::query::Query>>,
     ns: &str,
     world: &World,
@@ -850,7 +846,7 @@ fn connect(
 
 /// The empowerment service of an actor host: DESCRIBE from the learner's service (asked
 /// once), everything else asked of it per request.
-struct Forwarder {
+pub(crate) struct Forwarder {
     session: zenoh::Session,
     key: String,
     describe: Describe,
@@ -859,7 +855,7 @@ struct Forwarder {
 }
 
 impl Forwarder {
-    fn new(
+    pub(crate) fn new(
         session: &zenoh::Session,
         run: &str,
         world: &World,
@@ -895,7 +891,7 @@ impl Forwarder {
     }
 
     /// One round trip; false when no answer came.
-    fn ask(&self, req: &EmpRequest, out: &mut EmpResponse) -> bool {
+    pub(crate) fn ask(&self, req: &EmpRequest, out: &mut EmpResponse) -> bool {
         let Ok(replies) = self
             .session
             .get(&self.key)

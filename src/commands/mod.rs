@@ -19,6 +19,15 @@ pub mod serve;
 pub mod train;
 pub mod world;
 
+/// This machine's hostname (or `host`).
+pub fn bridge_hostname() -> String {
+    std::fs::read_to_string("/proc/sys/kernel/hostname")
+        .map(|s| s.trim().to_string())
+        .ok()
+        .filter(|s| !s.is_empty())
+        .unwrap_or_else(|| "host".into())
+}
+
 /// What a command of the `multihost` feature says in a build without it.
 pub const NO_MULTIHOST: &str =
     "{} needs fulcrum built with the multihost feature: cargo build --release --features multihost";
@@ -72,6 +81,10 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::ActorHost(a) => actor_host::run(&a),
         #[cfg(feature = "multihost")]
         Command::Bridge(a) => bridge::run(&a),
+        #[cfg(feature = "multihost")]
+        Command::RemotePeer { listen } => bench::remote::peer(&listen),
+        #[cfg(not(feature = "multihost"))]
+        Command::RemotePeer { .. } => bad(NO_MULTIHOST.replace("{}", "__remote-peer")),
         #[cfg(not(feature = "multihost"))]
         Command::ActorHost(_) => bad(NO_MULTIHOST.replace("{}", "actor-host")),
         #[cfg(not(feature = "multihost"))]

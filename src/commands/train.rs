@@ -625,8 +625,15 @@ impl Supervisor {
                 return Ok(());
             }
         }
+        // A wildcard address is not one to connect to: name this host instead.
+        let hint = match addr.trim_start_matches("tcp/").rsplit_once(':') {
+            Some((h, port)) if h == "0.0.0.0" || h == "[::]" => {
+                format!("{}:{port}", super::bridge_hostname())
+            }
+            _ => addr.clone(),
+        };
         eprintln!(
-            "fulcrum train: actors on other hosts may join: fulcrum actor-host --connect {addr}"
+            "fulcrum train: actors on other hosts may join: fulcrum actor-host --connect {hint}"
         );
         self.bridge = Some(child);
         Ok(())
@@ -856,6 +863,17 @@ impl Progress {
             return;
         }
         let u: u64 = v[1].parse().unwrap_or(0);
+        // Runs with actors on other hosts re-plan their updates as hosts come and go.
+        if let Some(total) = v[2]
+            .parse::<u64>()
+            .ok()
+            .filter(|&t| t != self.updates && t > 0)
+        {
+            self.updates = total;
+            if let Some(b) = &self.bar {
+                b.set_length(total);
+            }
+        }
         let msg = format!(
             "steps {}  success {}  return {}  {} steps/s",
             v[3], v[4], v[5], v[6]
