@@ -448,6 +448,10 @@ pub struct ActorHostArgs {
     /// Refuse to join unless the run trains this world (a file or built-in name).
     #[arg(long)]
     pub world: Option<String>,
+    /// Refuse to join unless the run has this id (its run directory's name by default,
+    /// as `train` prints it).
+    #[arg(long)]
+    pub run_id: Option<String>,
     /// Working directory (the run's config and world as received, logs)
     /// [default: runs/remote-<name>].
     #[arg(long)]
@@ -488,6 +492,9 @@ pub struct BridgeArgs {
     /// --connect: refuse to join unless the run trains this world.
     #[arg(long)]
     pub world: Option<String>,
+    /// --connect: refuse to join unless the run has this id.
+    #[arg(long)]
+    pub run_id: Option<String>,
     /// --connect: seconds to wait for the learner, at the start and after a lost link.
     #[arg(long, value_name = "SECS", default_value_t = 600.0)]
     pub give_up: f64,

@@ -65,6 +65,9 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     if let Some(w) = &a.world {
         args.extend(["--world".into(), w.clone()]);
     }
+    if let Some(r) = &a.run_id {
+        args.extend(["--run-id".into(), r.clone()]);
+    }
     if let Some(c) = &a.zenoh.zenoh_config {
         args.extend(["--zenoh-config".into(), c.display().to_string()]);
     }

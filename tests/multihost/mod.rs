@@ -180,6 +180,18 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     );
     assert!(!far.join("wrong/config.toml").exists());
 
+    // So is a host that asks for another run.
+    let other_run = Command::new(bin())
+        .args(["actor-host", "--connect", &addr, "--name", "other"])
+        .args(["--run-id", "not-this-run", "--actors", "1"])
+        .arg("--dir")
+        .arg(far.join("other"))
+        .output()
+        .unwrap();
+    let says = String::from_utf8_lossy(&other_run.stderr);
+    assert_eq!(other_run.status.code(), Some(2), "{says}");
+    assert!(says.contains("not 'not-this-run'"), "{says}");
+
     let mut host = Command::new(bin());
     host.args([
         "actor-host",
@@ -206,8 +218,8 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     assert!(last.env_steps >= 300_032 && last.env_steps < 300_032 + 2 * 128);
     assert_eq!(last.env_steps % 128, 0);
     let hosts = host_rows(&dir);
-    // "wrong" asked first and was given index 1: "near" is host 2.
-    let remote: Vec<&HostRow> = hosts.iter().filter(|r| r.host == 2).collect();
+    // "wrong" and "other" asked first and were given indices 1 and 2: "near" is host 3.
+    let remote: Vec<&HostRow> = hosts.iter().filter(|r| r.host == 3).collect();
     assert!(
         remote.len() >= 20,
         "the remote actor took part in {} updates",
@@ -231,8 +243,115 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     assert!(last.dropped_chunks <= 2, "dropped {}", last.dropped_chunks);
     // The host got the run's settings and world, and its index.
     let names = std::fs::read_to_string(dir.join("hosts.txt")).unwrap();
-    assert!(names.lines().any(|l| l.starts_with("2 near ")), "{names}");
+    assert!(names.lines().any(|l| l.starts_with("3 near ")), "{names}");
     assert!(far.join("config.toml").exists() && far.join("world.toml").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&far);
+}
+
+/// Pids of live processes whose command line contains every needle.
+fn pids_with(needles: &[&str]) -> Vec<u32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let cmd = std::fs::read(e.path().join("cmdline")).unwrap_or_default();
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        if needles.iter().all(|n| cmd.contains(n)) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+/// CPU seconds a process has used (user + system; 100 clock ticks a second).
+fn cpu_seconds(pid: u32) -> f64 {
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
+    let after = &stat[stat.rfind(')').unwrap() + 2..];
+    let f: Vec<&str> = after.split_whitespace().collect();
+    (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
+}
+
+fn kill(pid: u32, sig: &str) {
+    assert!(Command::new("kill")
+        .args([sig, &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+}
+
+#[test]
+fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
+    let dir = scratch("stop");
+    let far = scratch("stop-far");
+    let addr = format!("127.0.0.1:{}", free_port());
+    // Asynchronous actors: they would run on without waiting for weights, so only
+    // backpressure can hold the far one back.
+    let mut train = Command::new(bin());
+    train
+        .args(["train", "exp2", "--actors", "1", "--steps", "99999872"])
+        .args(["--listen", &addr, "--max-policy-lag", "1000000"])
+        .args(SMALL)
+        .arg("--out")
+        .arg(&dir);
+    let mut learner = Proc::start(train);
+    learner.wait_line("may join", Duration::from_secs(60));
+    let mut host = Command::new(bin());
+    host.args([
+        "actor-host",
+        "--connect",
+        &addr,
+        "--name",
+        "far",
+        "--actors",
+        "1",
+    ])
+    .arg("--dir")
+    .arg(&far);
+    let mut host = Proc::start(host);
+    let far_chunks = |dir: &Path| {
+        host_rows(dir)
+            .iter()
+            .filter(|r| r.host == 1)
+            .map(|r| r.chunks)
+            .sum::<u64>()
+    };
+    wait_until(Duration::from_secs(60), "the far host joining", || {
+        far_chunks(&dir) > 5
+    });
+    let learner_pid = pids_with(&["__learner", &dir.display().to_string()])[0];
+    let actor_pid = pids_with(&["__actor", &far.display().to_string()])[0];
+
+    kill(learner_pid, "-STOP");
+    std::thread::sleep(Duration::from_secs(1)); // the queues on the way fill up
+    let c0 = cpu_seconds(actor_pid);
+    std::thread::sleep(Duration::from_secs(3));
+    let used = cpu_seconds(actor_pid) - c0;
+    kill(learner_pid, "-CONT");
+    // Running freely the far actor would use most of a core here (it steps worlds
+    // without waiting for weights); held back, it sleeps.
+    assert!(
+        used < 0.5,
+        "the far actor used {used} s of CPU in 3 s while the learner was stopped"
+    );
+    let before = far_chunks(&dir);
+    wait_until(Duration::from_secs(30), "the far host going on", || {
+        far_chunks(&dir) > before + 20
+    });
+    kill(learner.child.id(), "-INT");
+    assert_eq!(learner.finish(Duration::from_secs(60)).code(), Some(130));
+    assert!(
+        host.finish(Duration::from_secs(30)).success(),
+        "{}",
+        host.text()
+    );
+    let last = read_metrics(&dir.join("metrics.csv"))
+        .unwrap()
+        .pop()
+        .unwrap();
+    // Nothing was dropped to make room, and every chunk arrived.
+    assert_eq!((last.lost_chunks, last.dropped_chunks), (0, 0));
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&far);
 }
