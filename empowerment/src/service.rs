@@ -217,7 +217,7 @@ pub fn describe(engine: &Engine, cfg: &ServeConfig) -> Describe {
         object_mask: object_mask(&cfg.objects),
         horizon_unequipped: cfg.horizon_unequipped,
         horizon_equipped: cfg.horizon_equipped,
-        ..empty_describe()
+        ..Describe::empty()
     };
     msg::put_name(&mut d.world, &w.name);
     for (k, t) in w.tools.iter().enumerate() {
@@ -820,7 +820,7 @@ impl Client {
             listener,
             listener_id,
             world_hash: world.content_hash(),
-            describe: empty_describe(),
+            describe: Describe::empty(),
             in_flight: VecDeque::new(),
             seq: 0,
             timeout: deadline.max(Duration::from_secs(5)),
@@ -1095,22 +1095,5 @@ impl Client {
     /// The namespace.
     pub fn namespace(&self) -> &str {
         &self.namespace
-    }
-}
-
-fn empty_describe() -> Describe {
-    Describe {
-        world: [0; 64],
-        world_hash: 0,
-        states: 0,
-        normal_states: 0,
-        n_tools: 0,
-        n_objects: 0,
-        tools: [[0; msg::NAME_BYTES]; 16],
-        objects: [[0; msg::NAME_BYTES]; 16],
-        tool: 0,
-        object_mask: 0,
-        horizon_unequipped: 0,
-        horizon_equipped: 0,
     }
 }

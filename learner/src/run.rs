@@ -879,46 +879,40 @@ fn open_csv(path: &Path, columns: &[&str]) -> Result<std::fs::File, LearnerError
 /// Keep the header and the whole rows of updates `<= upto` of a CSV file whose first
 /// column is the update (`hosts.csv`); rewritten atomically.
 fn trim_rows(path: &Path, columns: &[&str], upto: u64) -> Result<(), LearnerError> {
-    let Ok(text) = std::fs::read_to_string(path) else {
-        return Ok(());
-    };
-    let mut out = columns.join(",") + "\n";
-    for line in text.lines().skip(1) {
-        let whole = line.split(',').count() == columns.len();
-        if whole
+    rewrite_rows(path, columns, |line| {
+        line.split(',').count() == columns.len()
             && line
                 .split(',')
                 .next()
                 .and_then(|u| u.parse::<u64>().ok())
                 .is_some_and(|u| u <= upto)
-        {
-            out.push_str(line);
-            out.push('\n');
-        }
-    }
-    if out != text {
-        let tmp = path.with_extension("csv.tmp");
-        std::fs::write(&tmp, &out)
-            .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
-    }
-    Ok(())
+    })
 }
 
 /// Keep the header and the rows of updates `<= upto` (rows written after the last
-/// checkpoint belong to updates that will be redone); rewritten atomically.
+/// checkpoint belong to updates that will be redone); rewritten atomically. A file from
+/// an older version gains the new columns' header; a row torn by a crash does not parse
+/// and goes.
 fn trim_metrics(path: &Path, upto: u64) -> Result<(), LearnerError> {
+    rewrite_rows(path, METRICS_COLUMNS, |line| {
+        MetricsRow::parse(line).is_some_and(|r| r.update <= upto)
+    })
+}
+
+/// Rewrite a CSV file (atomically, and only if something changes) with the header
+/// `columns` and the rows that `keep`.
+fn rewrite_rows(
+    path: &Path,
+    columns: &[&str],
+    keep: impl Fn(&str) -> bool,
+) -> Result<(), LearnerError> {
     let Ok(text) = std::fs::read_to_string(path) else {
         return Ok(());
     };
-    // The current header (a file from an older version gains the new columns), then
-    // the whole rows up to the checkpoint; a row torn by a crash does not parse and goes.
-    let mut out = METRICS_COLUMNS.join(",") + "\n";
-    for line in text.lines().skip(1) {
-        if MetricsRow::parse(line).is_some_and(|r| r.update <= upto) {
-            out.push_str(line);
-            out.push('\n');
-        }
+    let mut out = columns.join(",") + "\n";
+    for line in text.lines().skip(1).filter(|l| keep(l)) {
+        out.push_str(line);
+        out.push('\n');
     }
     if out != text {
         let tmp = path.with_extension("csv.tmp");

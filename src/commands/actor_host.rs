@@ -18,21 +18,14 @@ use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::Ordering;
 use std::sync::mpsc;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 
 use crate::cli::ActorHostArgs;
 use crate::commands::bad;
 use crate::commands::bridge::{actor_id, default_dir, hostname, Joined};
-use crate::commands::train::{cores, install_signal_handlers, STOP};
-
-fn signal(c: &Child, sig: libc::c_int) {
-    // SAFETY: kill(2) on our own child's pid.
-    unsafe {
-        libc::kill(c.id() as libc::pid_t, sig);
-    }
-}
+use crate::commands::train::{cores, install_signal_handlers, signal, stop_children, STOP};
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {
@@ -189,25 +182,10 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         }
         std::thread::sleep(Duration::from_millis(20));
     };
-    // Stop actors, then the bridge.
+    // Stop actors and the bridge.
     let mut all: Vec<Child> = actors.into_iter().map(|(c, _)| c).collect();
     all.push(bridge);
-    for c in &all {
-        signal(c, libc::SIGTERM);
-    }
-    let t0 = Instant::now();
-    while t0.elapsed() < Duration::from_secs(4) {
-        if all.iter_mut().all(|c| matches!(c.try_wait(), Ok(Some(_)))) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-    for c in &mut all {
-        if !matches!(c.try_wait(), Ok(Some(_))) {
-            let _ = c.kill();
-        }
-        let _ = c.wait();
-    }
+    stop_children(all);
     fulcrum_empowerment::service::clean_dead_nodes();
     result
 }

@@ -753,47 +753,47 @@ impl Supervisor {
                 self.actors[i] = (Some(c), inc);
             }
         }
-        let bridge_status = match &mut self.bridge {
-            Some(c) => c.try_wait()?,
-            None => None,
-        };
-        if let Some(s) = bridge_status {
-            self.restarts += 1;
-            if self.restarts > self.max_restarts {
-                anyhow::bail!(
-                    "the bridge stopped ({}) and the run used up its {} restarts",
-                    describe_status(s),
-                    self.max_restarts
-                );
-            }
-            progress.note(&format!(
-                "the bridge stopped ({}); restarting it",
-                describe_status(s)
-            ));
+        if let Some(s) = self
+            .bridge
+            .as_mut()
+            .map(|c| c.try_wait())
+            .transpose()?
+            .flatten()
+        {
+            self.count_restart("the bridge", s, progress)?;
             self.bridge = None;
             self.start_bridge()?;
         }
-        let service_status = match &mut self.service {
-            Some(c) => c.try_wait()?,
-            None => None,
-        };
-        if let Some(s) = service_status {
-            self.restarts += 1;
-            if self.restarts > self.max_restarts {
-                anyhow::bail!(
-                    "the empowerment service stopped ({}) and the run used up its {} restarts",
-                    describe_status(s),
-                    self.max_restarts
-                );
-            }
-            progress.note(&format!(
-                "the empowerment service stopped ({}); restarting it",
-                describe_status(s)
-            ));
+        if let Some(s) = self
+            .service
+            .as_mut()
+            .map(|c| c.try_wait())
+            .transpose()?
+            .flatten()
+        {
+            self.count_restart("the empowerment service", s, progress)?;
             self.service = None;
             fulcrum_empowerment::service::clean_dead_nodes();
             self.start_service()?;
         }
+        Ok(())
+    }
+
+    /// Count the restart of a stopped helper process (an error once the run has used
+    /// up its restarts) and say so.
+    fn count_restart(&mut self, what: &str, s: ExitStatus, progress: &Progress) -> Result<()> {
+        self.restarts += 1;
+        if self.restarts > self.max_restarts {
+            anyhow::bail!(
+                "{what} stopped ({}) and the run used up its {} restarts",
+                describe_status(s),
+                self.max_restarts
+            );
+        }
+        progress.note(&format!(
+            "{what} stopped ({}); restarting it",
+            describe_status(s)
+        ));
         Ok(())
     }
 
@@ -810,26 +810,31 @@ impl Supervisor {
         if let Some(b) = self.bridge.take() {
             all.push(b);
         }
-        for c in &all {
-            signal(c, libc::SIGTERM);
-        }
-        let t0 = Instant::now();
-        while t0.elapsed() < Duration::from_secs(4) {
-            if all.iter_mut().all(|c| matches!(c.try_wait(), Ok(Some(_)))) {
-                break;
-            }
-            std::thread::sleep(Duration::from_millis(10));
-        }
-        for c in &mut all {
-            if !matches!(c.try_wait(), Ok(Some(_))) {
-                let _ = c.kill();
-            }
-            let _ = c.wait();
-        }
+        stop_children(all);
     }
 }
 
-fn signal(c: &Child, sig: libc::c_int) {
+/// SIGTERM to every child, then SIGKILL to those still running after 4 s; all reaped.
+pub(crate) fn stop_children(mut all: Vec<Child>) {
+    for c in &all {
+        signal(c, libc::SIGTERM);
+    }
+    let t0 = Instant::now();
+    while t0.elapsed() < Duration::from_secs(4) {
+        if all.iter_mut().all(|c| matches!(c.try_wait(), Ok(Some(_)))) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    for c in &mut all {
+        if !matches!(c.try_wait(), Ok(Some(_))) {
+            let _ = c.kill();
+        }
+        let _ = c.wait();
+    }
+}
+
+pub(crate) fn signal(c: &Child, sig: libc::c_int) {
     // SAFETY: kill(2) on our own child's pid.
     unsafe {
         libc::kill(c.id() as libc::pid_t, sig);
