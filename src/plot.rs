@@ -34,10 +34,8 @@ pub use bands::{band_chart_png, band_chart_svg, Band, BandChart};
 pub use episode::{episode_png, Frame, Strip};
 pub use matrix::{matrix_png, MatrixPicture};
 
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
+use std::io;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::OnceLock;
 
 use ab_glyph::{point, Font, FontRef, PxScale, ScaleFont};
@@ -216,46 +214,7 @@ pub fn trace_png(path: &Path, t: &Trace) -> Result<(), PlotError> {
     save_png(path, &buf, width, height)
 }
 
-/// Write bytes atomically: a temp file in the same directory, fsync, then rename over
-/// `path`. On any error the temp file is removed and `path` is left as it was.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path.file_name().ok_or_else(|| {
-        io::Error::new(
-            io::ErrorKind::InvalidInput,
-            format!("{} does not name a file", path.display()),
-        )
-    })?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(
-        ".tmp-{}-{}",
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    let tmp = dir.join(tmp_name);
-    let mut file = OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-    let result = file
-        .write_all(bytes)
-        .and_then(|()| file.sync_all())
-        .and_then(|()| {
-            drop(file);
-            fs::rename(&tmp, path)
-        });
-    if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
-        return Err(e);
-    }
-    // Make the rename itself durable; not every platform can open a directory.
-    if let Ok(d) = File::open(dir) {
-        let _ = d.sync_all();
-    }
-    Ok(())
-}
+pub use fulcrum_shared::fsio::write_atomic;
 
 // ---------------------------------------------------------------------------------------
 // Shared helpers
@@ -1713,6 +1672,8 @@ fn draw_curve(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::fs;
+    use std::sync::atomic::{AtomicU64, Ordering};
 
     /// A fresh directory under the system temp dir, removed on drop.
     struct TempDir(PathBuf);
@@ -2035,21 +1996,8 @@ mod tests {
     }
 
     #[test]
-    fn write_atomic_replaces_and_cleans_up() {
+    fn plot_errors_name_the_file() {
         let dir = TempDir::new("atomic");
-        let path = dir.0.join("f.bin");
-        write_atomic(&path, b"one").expect("write");
-        write_atomic(&path, b"two").expect("overwrite");
-        assert_eq!(fs::read(&path).expect("read"), b"two");
-        // Renaming over a non-empty directory fails: the temp file must not stay behind.
-        let sub = dir.0.join("sub");
-        fs::create_dir(&sub).expect("mkdir");
-        fs::write(sub.join("x"), b"x").expect("write x");
-        assert!(write_atomic(&sub, b"data").is_err());
-        assert!(no_temp_files(&dir.0));
-        // A missing directory is an error, as is a path without a file name.
-        assert!(write_atomic(&dir.0.join("missing").join("f"), b"x").is_err());
-        assert!(write_atomic(Path::new("/"), b"x").is_err());
         // Errors from the plot functions name the file.
         let e = heatmap_png(
             &dir.0.join("missing").join("h.png"),

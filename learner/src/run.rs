@@ -915,10 +915,7 @@ fn rewrite_rows(
         out.push('\n');
     }
     if out != text {
-        let tmp = path.with_extension("csv.tmp");
-        std::fs::write(&tmp, &out)
-            .and_then(|_| std::fs::rename(&tmp, path))
-            .map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
+        fulcrum_shared::fsio::write_atomic(path, out.as_bytes()).map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
     }
     Ok(())
 }

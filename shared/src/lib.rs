@@ -10,6 +10,8 @@
 
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
+/// Atomic file writes that leave device nodes and FIFOs alone.
+pub mod fsio;
 /// Episodes, task rewards and the learner's observation encoding.
 pub mod env;
 /// Random valid world files.

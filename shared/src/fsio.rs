@@ -1,0 +1,157 @@
+//! Writing files so that nothing is lost: a reader sees the old file or the new one,
+//! never half of either.
+//!
+//! [`write_atomic`] writes a temporary file beside the target, fsyncs it and renames it
+//! over the target. A target that exists and is not a regular file (`/dev/null`,
+//! `/dev/stdout`, a FIFO) is written in place instead: renaming over it would replace a
+//! device node with a regular file, which on a shared machine breaks every later
+//! process that reads `/dev/null` (cargo's own `rustc -` probe among them).
+
+use std::ffi::OsString;
+use std::fs::{self, File, OpenOptions};
+use std::io::{self, Write};
+use std::path::Path;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Write `bytes` to `path` atomically: a temp file in the same directory, fsync, then
+/// rename over `path`. On any error the temp file is removed and `path` is left as it
+/// was. A `path` that exists and is not a regular file (a device, a FIFO, a socket, or
+/// a link to one) is opened and written in place; a directory is an error.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    if let Ok(meta) = fs::metadata(path) {
+        if meta.is_dir() {
+            return Err(io::Error::new(
+                io::ErrorKind::InvalidInput,
+                format!("{} is a directory", path.display()),
+            ));
+        }
+        if !meta.is_file() {
+            return OpenOptions::new()
+                .write(true)
+                .open(path)?
+                .write_all(bytes);
+        }
+    }
+    let name = path.file_name().ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("{} does not name a file", path.display()),
+        )
+    })?;
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let mut tmp_name = OsString::from(".");
+    tmp_name.push(name);
+    tmp_name.push(format!(
+        ".tmp-{}-{}",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let tmp = dir.join(tmp_name);
+    let mut file = OpenOptions::new().write(true).create_new(true).open(&tmp)?;
+    let result = file
+        .write_all(bytes)
+        .and_then(|()| file.sync_all())
+        .and_then(|()| {
+            drop(file);
+            fs::rename(&tmp, path)
+        });
+    if let Err(e) = result {
+        let _ = fs::remove_file(&tmp);
+        return Err(e);
+    }
+    // Make the rename itself durable; not every platform can open a directory.
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Read;
+    use std::os::unix::fs::FileTypeExt;
+    use std::path::PathBuf;
+
+    struct TempDir(PathBuf);
+    impl TempDir {
+        fn new(tag: &str) -> TempDir {
+            let p = std::env::temp_dir().join(format!(
+                "fulcrum-fsio-{tag}-{}-{:?}",
+                std::process::id(),
+                std::thread::current().id()
+            ));
+            let _ = fs::remove_dir_all(&p);
+            fs::create_dir_all(&p).expect("temp dir");
+            TempDir(p)
+        }
+    }
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = fs::remove_dir_all(&self.0);
+        }
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> = fs::read_dir(dir)
+            .expect("read dir")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    }
+
+    #[test]
+    fn replaces_a_regular_file_and_leaves_no_temp_file() {
+        let dir = TempDir::new("regular");
+        let path = dir.0.join("f.json");
+        write_atomic(&path, b"one").expect("write");
+        write_atomic(&path, b"two").expect("overwrite");
+        assert_eq!(fs::read(&path).expect("read"), b"two");
+        assert_eq!(entries(&dir.0), ["f.json"]);
+        // A directory is refused by name and nothing is left beside it.
+        let sub = dir.0.join("sub");
+        fs::create_dir(&sub).expect("mkdir");
+        let e = write_atomic(&sub, b"x").expect_err("a directory");
+        assert!(e.to_string().contains("is a directory"), "{e}");
+        assert_eq!(entries(&dir.0), ["f.json", "sub"]);
+        assert!(write_atomic(&dir.0.join("missing").join("f"), b"x").is_err());
+        assert!(write_atomic(Path::new("/"), b"x").is_err());
+    }
+
+    /// The failure this guards against: `--json /dev/null` renamed a regular file over
+    /// the device node. A FIFO stands in for the device so that a wrong implementation
+    /// cannot break this machine's `/dev/null`.
+    #[test]
+    fn writes_into_a_fifo_and_keeps_it_a_fifo() {
+        let dir = TempDir::new("fifo");
+        let fifo = dir.0.join("pipe");
+        let made = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo runs");
+        assert!(made.success(), "mkfifo {}", fifo.display());
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || {
+                let mut got = Vec::new();
+                File::open(&fifo)
+                    .expect("open the fifo for reading")
+                    .read_to_end(&mut got)
+                    .expect("read the fifo");
+                got
+            })
+        };
+        write_atomic(&fifo, b"{\"steps\": 3}\n").expect("write into the fifo");
+        // Checked before joining: a FIFO replaced by a file would leave the reader
+        // waiting for a writer forever.
+        let kind = fs::symlink_metadata(&fifo).expect("stat").file_type();
+        assert!(kind.is_fifo(), "the fifo was replaced by {kind:?}");
+        assert_eq!(reader.join().expect("reader"), b"{\"steps\": 3}\n");
+        assert_eq!(entries(&dir.0), ["pipe"]);
+    }
+}
