@@ -27,10 +27,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
             ));
         }
         if !meta.is_file() {
-            return OpenOptions::new()
-                .write(true)
-                .open(path)?
-                .write_all(bytes);
+            return OpenOptions::new().write(true).open(path)?.write_all(bytes);
         }
     }
     let name = path.file_name().ok_or_else(|| {

@@ -10,10 +10,10 @@
 
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
-/// Atomic file writes that leave device nodes and FIFOs alone.
-pub mod fsio;
 /// Episodes, task rewards and the learner's observation encoding.
 pub mod env;
+/// Atomic file writes that leave device nodes and FIFOs alone.
+pub mod fsio;
 /// Random valid world files.
 pub mod generate;
 /// A fast hasher for state-keyed maps.
