@@ -753,24 +753,12 @@ impl Supervisor {
                 self.actors[i] = (Some(c), inc);
             }
         }
-        if let Some(s) = self
-            .bridge
-            .as_mut()
-            .map(|c| c.try_wait())
-            .transpose()?
-            .flatten()
-        {
+        if let Some(s) = exited(&mut self.bridge)? {
             self.count_restart("the bridge", s, progress)?;
             self.bridge = None;
             self.start_bridge()?;
         }
-        if let Some(s) = self
-            .service
-            .as_mut()
-            .map(|c| c.try_wait())
-            .transpose()?
-            .flatten()
-        {
+        if let Some(s) = exited(&mut self.service)? {
             self.count_restart("the empowerment service", s, progress)?;
             self.service = None;
             fulcrum_empowerment::service::clean_dead_nodes();
@@ -1004,4 +992,13 @@ pub fn actor_process(a: &ChildArgs) -> Result<()> {
         &STOP,
     )?;
     Ok(())
+}
+
+/// How a helper process ended, if it has (`None` also when there is none).
+fn exited(child: &mut Option<Child>) -> std::io::Result<Option<ExitStatus>> {
+    child
+        .as_mut()
+        .map(|c| c.try_wait())
+        .transpose()
+        .map(Option::flatten)
 }
