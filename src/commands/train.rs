@@ -729,37 +729,34 @@ impl Supervisor {
     /// Restart crashed actors and a crashed service.
     fn watch_children(&mut self, progress: &mut Progress) -> Result<()> {
         for i in 0..self.actors.len() {
-            let status = match &mut self.actors[i].0 {
-                Some(c) => c.try_wait()?,
-                None => None,
-            };
-            if let Some(s) = status {
-                self.restarts += 1;
-                if self.restarts > self.max_restarts {
-                    anyhow::bail!(
-                        "actor {i} stopped ({}) and the run used up its {} restarts",
-                        describe_status(s),
-                        self.max_restarts
-                    );
-                }
-                let inc = self.actors[i].1 + 1;
+            if let Some(s) = exited(&mut self.actors[i].0)? {
+                self.count_restart(&format!("actor {i}"), s)?;
                 progress.note(&format!(
                     "actor {i} stopped ({}); restarted ({} of {} restarts)",
                     describe_status(s),
                     self.restarts,
                     self.max_restarts
                 ));
+                let inc = self.actors[i].1 + 1;
                 let c = self.start_actor(i, inc)?;
                 self.actors[i] = (Some(c), inc);
             }
         }
         if let Some(s) = exited(&mut self.bridge)? {
-            self.count_restart("the bridge", s, progress)?;
+            self.count_restart("the bridge", s)?;
+            progress.note(&format!(
+                "the bridge stopped ({}); restarting it",
+                describe_status(s)
+            ));
             self.bridge = None;
             self.start_bridge()?;
         }
         if let Some(s) = exited(&mut self.service)? {
-            self.count_restart("the empowerment service", s, progress)?;
+            self.count_restart("the empowerment service", s)?;
+            progress.note(&format!(
+                "the empowerment service stopped ({}); restarting it",
+                describe_status(s)
+            ));
             self.service = None;
             fulcrum_empowerment::service::clean_dead_nodes();
             self.start_service()?;
@@ -767,9 +764,9 @@ impl Supervisor {
         Ok(())
     }
 
-    /// Count the restart of a stopped helper process (an error once the run has used
-    /// up its restarts) and say so.
-    fn count_restart(&mut self, what: &str, s: ExitStatus, progress: &Progress) -> Result<()> {
+    /// Count the restart of a stopped child: an error once the run has used up its
+    /// restarts.
+    fn count_restart(&mut self, what: &str, s: ExitStatus) -> Result<()> {
         self.restarts += 1;
         if self.restarts > self.max_restarts {
             anyhow::bail!(
@@ -778,10 +775,6 @@ impl Supervisor {
                 self.max_restarts
             );
         }
-        progress.note(&format!(
-            "{what} stopped ({}); restarting it",
-            describe_status(s)
-        ));
         Ok(())
     }
 
