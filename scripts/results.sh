@@ -16,17 +16,41 @@ mkdir -p "$out"
 # same directory serves several commands: finished runs are reused, not run again).
 run() {
   local name=$1 world=$2; shift 2
+  local paper=(-- --no-action-mask --ppo-preset cleanrl)
   if [[ "$mode" != pictures ]]; then
-    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@"
+    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" "${paper[@]}"
   else
     # Every run is finished: this only aggregates again.
-    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" > /dev/null
+    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" "${paper[@]}" > /dev/null
   fi
   cp "experiments/$world/plots/success.png" "$out/$name-success.png"
   cp "experiments/$world/plots/return.png" "$out/$name-return.png"
   cp "experiments/$world/summary.md" "$out/$name-summary.md"
 }
 mode=${1:-all}
+# The decisive experiment (defaults: action masking, advantage floor): eight arms, four
+# worlds, 10 seeds; budgets 500k env steps (exp1) and 3M (exp2, exp3).
+masked() {
+  local world=$1 steps=$2
+  local arms=baseline,additive,additive-fixed,horizon-potential,first-visit,cleanrl,baseline-unmasked,rllib
+  if [[ "$mode" != pictures ]]; then
+    $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world"
+  else
+    $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world" > /dev/null
+  fi
+  for p in success solved; do
+    cp "experiments/masked/$world/plots/$p.png" "$out/masked-$world-$p.png"
+  done
+  cp "experiments/masked/$world/summary.md" "$out/masked-$world-summary.md"
+}
+if [[ "$mode" != pictures || -d experiments/masked/exp2 ]]; then
+  masked exp1-tree 499712
+  masked exp1-wall 499712
+  masked exp3 2998272
+  masked exp2 2998272
+fi
+# The paper's unmasked setting, measured before masking and the advantage floor existed:
+# `run` passes `-- --no-action-mask --ppo-preset cleanrl`, which gives those same runs.
 if [[ "$mode" != pictures || -d experiments/exp3 ]]; then
   # Issue 5: PPO against PPO + the paper's additive bonus, four worlds.
   run exp1-tree exp1-tree --steps 2097152

@@ -115,6 +115,10 @@ pub struct ServeArgs {
     /// Horizon where the tool is held (default: the world's).
     #[arg(long)]
     pub horizon_equipped: Option<u32>,
+    /// LOOKUP answers Phi = sum over h = 1..H of E^h (H the larger horizon) instead of E:
+    /// the potential of `train --intrinsic horizon-potential`.
+    #[arg(long)]
+    pub horizon_sum: bool,
     /// Service namespace: the service is `fulcrum/<namespace>/empowerment`.
     #[arg(long, default_value = "default")]
     pub namespace: String,
@@ -324,21 +328,28 @@ pub struct TrainArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
     #[arg(required_unless_present = "resume")]
     pub world: Option<String>,
-    /// Weight of the intrinsic reward E (default: the world's [empowerment] beta).
+    /// Weight of the intrinsic reward [default: the world's [empowerment] beta; 0.05 for
+    /// horizon-potential, 0.1 for first-visit].
     #[arg(long, allow_negative_numbers = true)]
     pub beta: Option<f64>,
     /// The baseline: no empowerment service, reward R only (= `--intrinsic none`).
     #[arg(long)]
     pub no_empowerment: bool,
     /// The intrinsic reward form: additive (R + beta E(s'), the paper's), potential
-    /// (R + beta (gamma E(s') - E(s))), count (R + beta / sqrt N(s')) or none
-    /// [default: additive].
-    #[arg(long, value_parser = ["additive", "potential", "count", "none"])]
+    /// (R + beta (gamma E(s') - E(s))), horizon-potential (the same with Phi = sum over
+    /// h <= H of E^h), first-visit (beta E(s') once per inventory per episode), count
+    /// (R + beta / sqrt N(s')) or none [default: additive].
+    #[arg(long, value_parser = ["additive", "potential", "horizon-potential", "first-visit", "count", "none"])]
     pub intrinsic: Option<String>,
     /// switch: the held / not-held horizons of the world file (the paper's); fixed: the
     /// not-held horizon everywhere [default: switch].
     #[arg(long, value_parser = ["switch", "fixed"])]
     pub horizon_mode: Option<String>,
+    /// Sample every action in every mode, as the paper's agent does, instead of only the
+    /// actions the mode allows (moves and, holding a tool, apply; at the tool prompt a
+    /// held tool; at the direction prompt a direction).
+    #[arg(long)]
+    pub no_action_mask: bool,
     /// Seed of weights, sampling, minibatches and worlds.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -396,6 +407,13 @@ pub struct TrainArgs {
     /// Minibatches per epoch [default: 4].
     #[arg(long)]
     pub minibatches: Option<usize>,
+    /// PPO settings: fulcrum (CleanRL's ppo.py with an advantage floor of 0.1), cleanrl
+    /// (CleanRL's exactly), rllib (RLlib's defaults, the paper's learner: lr 5e-5
+    /// constant, 8 x 512 steps, 30 epochs of 32 minibatches, lambda 1, clip 0.3, no
+    /// entropy bonus, adaptive KL penalty) [default: fulcrum]. --lr, --epochs,
+    /// --minibatches and --steps-per-chunk override the preset's.
+    #[arg(long, value_parser = ["fulcrum", "cleanrl", "rllib"])]
+    pub ppo_preset: Option<String>,
     /// Stop (with a checkpoint, resumable) after this many updates in this session.
     #[arg(long, hide = true)]
     pub stop_after_updates: Option<u64>,
@@ -536,11 +554,14 @@ pub struct ExperimentArgs {
     #[arg(long, allow_negative_numbers = true)]
     pub beta: Option<f64>,
     /// Arms, comma separated: baseline (no intrinsic reward), empowerment (the
-    /// --intrinsic form), or a form by name: none, additive, potential, count.
+    /// --intrinsic form), a form by name (none, additive, potential, count,
+    /// horizon-potential, first-visit), additive-fixed (additive with --horizon-mode
+    /// fixed), a baseline with another PPO preset (cleanrl, rllib), or
+    /// baseline-unmasked (the baseline with --no-action-mask).
     #[arg(long, default_value = "baseline,empowerment")]
     pub arms: String,
     /// The intrinsic reward form of the `empowerment` arm and of --beta-sweep's arms.
-    #[arg(long, default_value = "additive", value_parser = ["additive", "potential", "count"])]
+    #[arg(long, default_value = "additive", value_parser = ["additive", "potential", "count", "horizon-potential", "first-visit"])]
     pub intrinsic: String,
     /// Also one arm per beta, comma separated, with the --intrinsic form (named
     /// beta-<b> for additive, <form>-beta-<b> otherwise).

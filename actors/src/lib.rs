@@ -97,7 +97,7 @@ pub fn run_actor(
     stop: &'static AtomicBool,
 ) -> Result<(), ActorError> {
     let shape = shape_for(world, cfg.hidden);
-    let mut policy = Policy::new(shape);
+    let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
     let (m, t_len) = (cfg.envs_per_actor, cfg.steps_per_chunk);
     let layout = ChunkLayout {
         envs: m,
@@ -194,7 +194,7 @@ pub fn run_actor(
     // the same values as the one that stopped.
     let mut phi = vec![0.0f32; m];
     let mut phi_reset = 0.0f32;
-    if form == Intrinsic::Potential {
+    if form.is_potential() {
         let mut ask_states: Vec<State> = envs.iter().map(|r| r.episode.state).collect();
         ask_states.push(world.reset().state);
         let mut vals = vec![0.0f32; ask_states.len()];
@@ -236,6 +236,10 @@ pub fn run_actor(
             &mut cur_f[e * f..(e + 1) * f],
         );
     }
+    // First-visit: each world's current inventory and whether it has been paid.
+    let mut inv: Vec<u16> = envs.iter().map(|r| r.episode.state.inventory).collect();
+    let mut paid: Vec<bool> = envs.iter().map(|r| r.paid).collect();
+    let mut next_inv: Vec<u16> = Vec::with_capacity(n);
     let mut seq = 0u64;
     let mut per_version = 0u64;
     let mut next_states: Vec<State> = Vec::with_capacity(n);
@@ -407,12 +411,18 @@ pub fn run_actor(
                 form,
                 gamma: cfg.ppo.gamma,
                 phi_reset,
+                inventory_reset: world.initial.inventory,
             };
+            next_inv.clear();
+            next_inv.extend(next_states.iter().map(|s| s.inventory));
             shaping.chunk(
                 &intrinsic,
+                &next_inv,
                 &buf[term..term + n],
                 &buf[trunc..trunc + n],
                 &mut phi,
+                &mut inv,
+                &mut paid,
                 &mut bonus,
             );
             let mut acc = carry.clone();
@@ -432,6 +442,7 @@ pub fn run_actor(
             let er = layout.range(Section::EnvState).start;
             for (e, r) in envs.iter_mut().enumerate() {
                 r.int_return = acc[e];
+                r.paid = paid[e];
                 buf[er + e * ENV_BYTES..er + (e + 1) * ENV_BYTES].copy_from_slice(&r.to_bytes());
             }
         }

@@ -28,6 +28,7 @@ pub struct Policy {
     z1: Vec<f32>,
     h2: Vec<f32>,
     logits: Vec<f32>,
+    masked: bool,
 }
 
 impl Policy {
@@ -41,7 +42,15 @@ impl Policy {
             z1: vec![0.0; shape.hidden],
             h2: vec![0.0; shape.hidden],
             logits: vec![0.0; shape.actions],
+            masked: false,
         }
+    }
+
+    /// Sample only the actions that [`fulcrum_shared::mask::action_mask`] allows in each
+    /// observation (masked logits count as -inf: probability 0, never drawn).
+    pub fn with_action_mask(mut self, on: bool) -> Policy {
+        self.masked = on;
+        self
     }
 
     /// Floats the weights take.
@@ -139,24 +148,41 @@ impl Policy {
     ) {
         let (c, f) = (self.shape.cells, self.shape.flags);
         for i in 0..actions.len() {
-            values[i] = self.eval(&glyphs[i * c..(i + 1) * c], &flags[i * f..(i + 1) * f]);
-            // log-softmax, then inverse-CDF sampling with one uniform draw.
+            let fl = &flags[i * f..(i + 1) * f];
+            values[i] = self.eval(&glyphs[i * c..(i + 1) * c], fl);
+            let mask = if self.masked {
+                fulcrum_shared::mask::action_mask(fl)
+            } else {
+                u32::MAX
+            };
+            let allowed = |k: usize| mask >> k & 1 == 1;
+            // log-softmax over the allowed actions, then inverse-CDF sampling with one
+            // uniform draw.
             let max = self
                 .logits
                 .iter()
-                .copied()
-                .fold(f32::NEG_INFINITY, f32::max);
+                .enumerate()
+                .filter(|(k, _)| allowed(*k))
+                .fold(f32::NEG_INFINITY, |m, (_, &l)| m.max(l));
             let lse = max
                 + self
                     .logits
                     .iter()
-                    .map(|l| (l - max).exp())
+                    .enumerate()
+                    .filter(|(k, _)| allowed(*k))
+                    .map(|(_, l)| (l - max).exp())
                     .sum::<f32>()
                     .ln();
             let u: f32 = rng.random();
             let mut acc = 0.0;
-            let mut pick = self.logits.len() - 1;
+            let mut pick = (0..self.logits.len())
+                .rev()
+                .find(|&k| allowed(k))
+                .unwrap_or(0);
             for (k, l) in self.logits.iter().enumerate() {
+                if !allowed(k) {
+                    continue;
+                }
                 acc += (l - lse).exp();
                 if u < acc {
                     pick = k;
@@ -216,5 +242,62 @@ mod tests {
         let (a2, _) = fulcrum_learner::net::sample(&logits, &mut rng2).unwrap();
         let a2: Vec<u8> = a2.iter().map(|&x| x as u8).collect();
         assert_eq!(a, a2);
+    }
+}
+
+#[cfg(test)]
+mod masked_tests {
+    use super::*;
+    use candle_core::Device;
+    use fulcrum_learner::net::{log_softmax, Net};
+    use fulcrum_shared::mask::action_mask;
+    use rand::SeedableRng;
+
+    /// With the mask, sampled actions are always allowed, and their log-probabilities are
+    /// those of the unmasked distribution renormalised over the allowed actions:
+    /// log p(a) - log(sum over allowed b of p(b)), computed here from candle's unmasked
+    /// log-softmax.
+    #[test]
+    fn masked_sampling_is_the_renormalised_distribution() {
+        // Two tools: flags [held0, held1, normal, choosing-tool, dir0, dir1], 7 actions.
+        let shape = NetShape {
+            cells: 12,
+            glyphs: 11,
+            flags: 6,
+            hidden: 16,
+            actions: 7,
+        };
+        let net = Net::new(shape, 9, &Device::Cpu).unwrap();
+        let mut p = Policy::new(shape).with_action_mask(true);
+        assert!(p.set(&net.flat().unwrap()));
+        let modes: [[u8; 6]; 5] = [
+            [0, 0, 1, 0, 0, 0],
+            [1, 0, 1, 0, 0, 0],
+            [1, 1, 0, 1, 0, 0],
+            [0, 1, 0, 1, 0, 0],
+            [1, 0, 0, 0, 1, 0],
+        ];
+        let n = 400;
+        let glyphs: Vec<u8> = (0..n * 12).map(|i| ((i * 7 + i / 5) % 11) as u8).collect();
+        let flags: Vec<u8> = (0..n).flat_map(|i| modes[i % 5]).collect();
+        let (logits, _) = net.forward(&net.batch(&glyphs, &flags).unwrap()).unwrap();
+        let lp = log_softmax(&logits).unwrap().to_vec2::<f32>().unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (mut a, mut l, mut v) = (vec![0u8; n], vec![0.0; n], vec![0.0; n]);
+        p.act(&glyphs, &flags, &mut rng, &mut a, &mut l, &mut v);
+        let mut seen = [0u32; 7];
+        for i in 0..n {
+            let m = action_mask(&flags[i * 6..(i + 1) * 6]);
+            assert_eq!(m >> a[i] & 1, 1, "sample {i}: action {} not allowed", a[i]);
+            seen[a[i] as usize] += 1;
+            let z: f32 = (0..7)
+                .filter(|&k| m >> k & 1 == 1)
+                .map(|k| lp[i][k].exp())
+                .sum();
+            let want = lp[i][a[i] as usize] - z.ln();
+            assert!((l[i] - want).abs() < 1e-5, "sample {i}: {} vs {want}", l[i]);
+        }
+        // Every action is allowed somewhere and drawn.
+        assert!(seen.iter().all(|&c| c > 0), "{seen:?}");
     }
 }

@@ -155,6 +155,9 @@ pub struct ServeConfig {
     pub horizon_unequipped: u32,
     /// Horizon where it is held.
     pub horizon_equipped: u32,
+    /// LOOKUP answers Phi(s) = sum over h = 1..H of E^h(s), H the larger horizon, in every
+    /// state (the potential of `train --intrinsic horizon-potential`) instead of E.
+    pub horizon_sum: bool,
     /// Bytes the QUERY cache may hold.
     pub cache_bytes: usize,
     /// How long to poll for the next request before blocking.
@@ -245,21 +248,33 @@ pub struct Tables<'w> {
 impl<'w> Tables<'w> {
     /// Precompute the configuration's tables.
     pub fn new(engine: Engine<'w>, cfg: ServeConfig) -> Result<Self, ServiceError> {
-        let counts = engine.counts(
-            cfg.tool,
-            &cfg.objects,
-            &[cfg.horizon_unequipped, cfg.horizon_equipped],
-            Method::Dp,
-        )?;
         let f = |v: &Vec<u32>| {
             v.iter()
                 .map(|&c| (c as f64).log2() as f32)
                 .collect::<Vec<f32>>()
         };
+        let (unequipped, equipped) = if cfg.horizon_sum {
+            // Every horizon 1..=H in one propagation; Phi is their sum (f64, then f32).
+            let h = cfg.horizon_unequipped.max(cfg.horizon_equipped);
+            let hs: Vec<u32> = (1..=h).collect();
+            let counts = engine.counts(cfg.tool, &cfg.objects, &hs, Method::Dp)?;
+            let phi: Vec<f32> = (0..engine.space.len())
+                .map(|i| counts.iter().map(|c| (c[i] as f64).log2()).sum::<f64>() as f32)
+                .collect();
+            (phi.clone(), phi)
+        } else {
+            let counts = engine.counts(
+                cfg.tool,
+                &cfg.objects,
+                &[cfg.horizon_unequipped, cfg.horizon_equipped],
+                Method::Dp,
+            )?;
+            (f(&counts[0]), f(&counts[1]))
+        };
         let describe = describe(&engine, &cfg);
         Ok(Tables {
-            unequipped: f(&counts[0]),
-            equipped: f(&counts[1]),
+            unequipped,
+            equipped,
             engine,
             cfg,
             cache: VecDeque::new(),
@@ -271,6 +286,21 @@ impl<'w> Tables<'w> {
     /// The DESCRIBE answer.
     pub fn describe(&self) -> &Describe {
         &self.describe
+    }
+
+    /// LOOKUP's answer for one state: E (or Phi with `horizon_sum`) in bits; `None` for a
+    /// state outside the state space.
+    pub fn lookup(&self, s: &State) -> Option<f32> {
+        let id = self.engine.space.id(s)?;
+        Some(self.value_at(s, id as usize))
+    }
+
+    fn value_at(&self, s: &State, id: usize) -> f32 {
+        if self.cfg.tool.held(s) {
+            self.equipped[id]
+        } else {
+            self.unequipped[id]
+        }
     }
 
     /// Answer one request into `out` (all-zero on entry).
@@ -293,14 +323,7 @@ impl<'w> Tables<'w> {
                 for i in 0..n {
                     let s = State::from_bytes(&req.states[i]);
                     match space.id(&s) {
-                        Some(id) => {
-                            let t = if self.cfg.tool.held(&s) {
-                                &self.equipped
-                            } else {
-                                &self.unequipped
-                            };
-                            out.values[i] = t[id as usize];
-                        }
+                        Some(id) => out.values[i] = self.value_at(&s, id as usize),
                         None => out.item_status[i] = item::NOT_IN_SPACE,
                     }
                 }

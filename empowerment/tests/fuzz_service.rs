@@ -28,6 +28,7 @@ proptest! {
         let w = load_world("exp2").unwrap();
         let e = Engine::new(&w, Limits { max_bytes: 256 << 20 }).unwrap();
         let mut t = Tables::new(e, ServeConfig {
+            horizon_sum: false,
             namespace: "fuzz".into(),
             tool: ToolSel::Tool(0),
             objects: ObjectSet::Objects(vec![0]),

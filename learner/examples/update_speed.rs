@@ -72,6 +72,7 @@ fn main() {
         values: &vals,
         advantages: &adv,
         returns: &ret,
+        action_mask: false,
     };
     let prep =
         fulcrum_learner::fused::Data::new(shape, &glyphs, &flags, &acts, &lp, &vals, &adv, &ret)
@@ -248,6 +249,7 @@ fn update_candle(
                 advantages: &adv,
                 returns: &ret,
                 old_values: &old_v,
+                logit_bias: None,
             };
             let t0 = Instant::now();
             let (l, s) = loss(net, &batch, cfg)?;

@@ -71,6 +71,11 @@ pub struct RunConfig {
     /// it (the actor rejoins with its next chunk).
     #[serde(default = "default_stall_timeout")]
     pub stall_timeout_s: f64,
+    /// Per-mode action masking ([`fulcrum_shared::mask`]) in the actors' sampling and the
+    /// learner's log-probabilities and entropy. A configuration written before masking
+    /// existed reads as `false`, the way those runs were trained.
+    #[serde(default)]
+    pub action_mask: bool,
     /// PPO hyperparameters (the `[ppo]` table).
     pub ppo: PpoConfig,
 }
@@ -262,8 +267,51 @@ mod tests {
             remote: false,
             stall_timeout_s: 10.0,
             checkpoint_every: 10,
+            action_mask: true,
             ppo: PpoConfig::default(),
         }
+    }
+
+    /// Every preset survives config.toml (RLlib's unclipped gradient norm is `inf`), and
+    /// a configuration written before masking and the new PPO fields reads as those runs
+    /// were trained: unmasked, no advantage floor, annealed learning rate, no KL term.
+    #[test]
+    fn presets_round_trip_and_old_files_keep_their_meaning() {
+        use crate::ppo::Preset;
+        for p in [Preset::Fulcrum, Preset::CleanRl, Preset::Rllib] {
+            let c = RunConfig {
+                ppo: p.ppo(),
+                ..cfg()
+            };
+            let back: RunConfig = toml::from_str(&c.to_toml()).unwrap();
+            assert_eq!(back, c);
+        }
+        let mut text = cfg().to_toml();
+        for key in [
+            "action_mask",
+            "adv_std_floor",
+            "lr_anneal",
+            "adv_norm_batch",
+            "vf_loss_clip",
+            "kl_coef",
+            "kl_target",
+        ] {
+            let start = text.find(&format!("{key} = ")).unwrap();
+            let end = start + text[start..].find('\n').unwrap() + 1;
+            text.replace_range(start..end, "");
+        }
+        let old: RunConfig = toml::from_str(&text).unwrap();
+        assert!(!old.action_mask);
+        assert_eq!(old.ppo.adv_std_floor, 0.0);
+        assert!(old.ppo.lr_anneal && !old.ppo.adv_norm_batch);
+        assert_eq!((old.ppo.vf_loss_clip, old.ppo.kl_coef), (0.0, 0.0));
+        assert_eq!(old.ppo.lr_at(5, 10), 2.5e-4 * 0.5);
+        // RLlib's rule: x1.5 above twice the target, x0.5 below half of it.
+        let r = Preset::Rllib.ppo();
+        assert_eq!(r.adapt_kl(0.2, 0.03), 0.3);
+        assert_eq!(r.adapt_kl(0.2, 0.004), 0.1);
+        assert_eq!(r.adapt_kl(0.2, 0.01), 0.2);
+        assert_eq!(r.lr_at(5, 10), 5e-5);
     }
 
     #[test]

@@ -122,6 +122,9 @@ pub struct Data<'a> {
     values: &'a [f32],
     advantages: &'a [f32],
     returns: &'a [f32],
+    /// Per sample, the allowed actions ([`fulcrum_shared::mask::action_mask`]); `None`
+    /// without masking.
+    masks: Option<Vec<u32>>,
 }
 
 impl<'a> Data<'a> {
@@ -231,7 +234,31 @@ impl<'a> Data<'a> {
             values,
             advantages,
             returns,
+            masks: None,
         })
+    }
+
+    /// Mask each sample's logits by the actions its flags allow (per-mode action
+    /// masking): masked actions get probability 0 in the log-probabilities, the entropy
+    /// and the gradient. Fails when a taken action is not allowed (a chunk sampled
+    /// without the mask).
+    pub fn with_action_mask(mut self, on: bool, flag_bytes: &[u8], flags: usize) -> Result<Self> {
+        if !on {
+            self.masks = None;
+            return Ok(self);
+        }
+        let masks: Vec<u32> = flag_bytes
+            .chunks_exact(flags.max(1))
+            .map(fulcrum_shared::mask::action_mask)
+            .collect();
+        if let Some(i) = (0..self.actions.len()).find(|&i| masks[i] >> self.actions[i] & 1 == 0) {
+            bail!(
+                "update data: sample {i} took action {}, which its mode does not allow (a chunk sampled without the action mask)",
+                self.actions[i]
+            );
+        }
+        self.masks = Some(masks);
+        Ok(self)
     }
 
     /// Samples.
@@ -855,14 +882,19 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
     if n == 0 {
         return Stats::default();
     }
-    // Advantage normalisation over the minibatch (as `loss`: mean, unbiased std).
-    let mean = idx.iter().map(|&i| d.advantages[i]).sum::<f32>() / n as f32;
-    let var = idx
-        .iter()
-        .map(|&i| (d.advantages[i] - mean) * (d.advantages[i] - mean))
-        .sum::<f32>()
-        / (n.max(2) - 1) as f32;
-    let std_eps = var.sqrt() + 1e-8;
+    // Advantage normalisation over the minibatch (as `loss`: mean, unbiased std), or
+    // none here when the batch was normalised as a whole.
+    let (mean, std_eps) = if cfg.adv_norm_batch {
+        (0.0, 1.0)
+    } else {
+        let mean = idx.iter().map(|&i| d.advantages[i]).sum::<f32>() / n as f32;
+        let var = idx
+            .iter()
+            .map(|&i| (d.advantages[i] - mean) * (d.advantages[i] - mean))
+            .sum::<f32>()
+            / (n.max(2) - 1) as f32;
+        (mean, var.sqrt().max(cfg.adv_std_floor) + 1e-8)
+    };
     let inv_n = 1.0 / n as f32;
     let (lo, hi) = (1.0 - cfg.clip, 1.0 + cfg.clip);
 
@@ -940,15 +972,26 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
 
         // Loss of this sample and its gradient w.r.t. logits and value.
         let logits = &out[..na];
-        let mx = logits.iter().copied().fold(f32::NEG_INFINITY, f32::max);
+        let mask = d.masks.as_ref().map_or(u32::MAX, |m| m[i]);
+        let allowed = |k: usize| mask >> k & 1 == 1;
+        let mx = logits
+            .iter()
+            .enumerate()
+            .filter(|(k, _)| allowed(*k))
+            .fold(f32::NEG_INFINITY, |m, (_, &x)| m.max(x));
         let mut z = 0.0f32;
-        for (e, &x) in p.iter_mut().zip(logits) {
-            *e = (x - mx).exp();
+        for (k, (e, &x)) in p.iter_mut().zip(logits).enumerate() {
+            *e = if allowed(k) { (x - mx).exp() } else { 0.0 };
             z += *e;
         }
         let (lse, inv_z) = (z.ln(), 1.0 / z);
         let mut ent = 0.0f32;
-        for ((lp, e), &x) in logp.iter_mut().zip(p.iter_mut()).zip(logits) {
+        for (k, ((lp, e), &x)) in logp.iter_mut().zip(p.iter_mut()).zip(logits).enumerate() {
+            if !allowed(k) {
+                // Probability 0: no term in the entropy, no gradient.
+                *lp = f32::NEG_INFINITY;
+                continue;
+            }
             *lp = (x - mx) - lse;
             *e *= inv_z;
             ent += *e * *lp;
@@ -961,11 +1004,19 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
         let (cl, dcl) = clamp_grad(ratio, lo, hi);
         let (pg1, pg2) = (-adv * ratio, -adv * cl);
         let (w1, w2) = max_weights(pg1, pg2);
-        let dlp = inv_n * ((-adv) * w1 + (-adv) * w2 * dcl) * ratio;
+        let mut dlp = inv_n * ((-adv) * w1 + (-adv) * w2 * dcl) * ratio;
+        if cfg.kl_coef != 0.0 {
+            // d/dlogp of c_kl * ((ratio - 1) - logratio) / n.
+            dlp += cfg.kl_coef * inv_n * (ratio - 1.0);
+        }
         let dent = -cfg.ent_coef * inv_n;
-        // g_j = dL/dlogp_j; dlogit_k = g_k - p_k * sum_j g_j.
+        // g_j = dL/dlogp_j; dlogit_k = g_k - p_k * sum_j g_j (masked: 0).
         let mut gsum = 0.0f32;
         for (j, ((dy, &lp), &pj)) in dout[..na].iter_mut().zip(&logp).zip(&p).enumerate() {
+            if !allowed(j) {
+                *dy = 0.0;
+                continue;
+            }
             let mut g = -dent * pj * (lp + 1.0);
             if j == act {
                 g += dlp;
@@ -979,15 +1030,23 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
         let value = out[na];
         let (ret, old_v) = (d.returns[i], d.values[i]);
         let vu = (value - ret) * (value - ret);
-        let (dc, ddc) = clamp_grad(value - old_v, -cfg.clip, cfg.clip);
-        let vc = old_v + dc;
-        let va = (vc - ret) * (vc - ret);
-        let (wa, wb) = max_weights(va, vu);
-        let coef = cfg.vf_coef * 0.5 * inv_n;
-        dout[na] = coef * (wa * 2.0 * (vc - ret) * ddc + wb * 2.0 * (value - ret));
+        if cfg.vf_loss_clip > 0.0 {
+            // RLlib: min((v - R)^2, c); `minimum` splits the gradient on a tie.
+            let (_, vu_max) = max_weights(cfg.vf_loss_clip, vu);
+            let w = 1.0 - vu_max;
+            dout[na] = cfg.vf_coef * inv_n * w * 2.0 * (value - ret);
+            v_sum += vu.min(cfg.vf_loss_clip);
+        } else {
+            let (dc, ddc) = clamp_grad(value - old_v, -cfg.clip, cfg.clip);
+            let vc = old_v + dc;
+            let va = (vc - ret) * (vc - ret);
+            let (wa, wb) = max_weights(va, vu);
+            let coef = cfg.vf_coef * 0.5 * inv_n;
+            dout[na] = coef * (wa * 2.0 * (vc - ret) * ddc + wb * 2.0 * (value - ret));
+            v_sum += 0.5 * va.max(vu);
+        }
 
         pg_sum += pg1.max(pg2);
-        v_sum += va.max(vu);
         ent_sum += ent;
         kl_sum += (ratio - 1.0) - logratio;
         clipped += ((ratio - 1.0).abs() > cfg.clip) as usize;
@@ -1058,7 +1117,7 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
 
     Stats {
         policy_loss: pg_sum * inv_n,
-        value_loss: v_sum * inv_n * 0.5,
+        value_loss: v_sum * inv_n,
         entropy: ent_sum * inv_n,
         approx_kl: kl_sum / n as f32,
         clip_frac: clipped as f32 / n as f32,
@@ -1166,12 +1225,69 @@ mod tests {
 
     #[test]
     fn gradient_and_stats_match_candle_autograd() {
+        check_gradient(false, PpoConfig::default());
+        // CleanRL's exact setting: no advantage floor.
+        check_gradient(false, crate::ppo::Preset::CleanRl.ppo());
+    }
+
+    /// The RLlib preset's loss: advantages as given (normalised over the batch before),
+    /// RLlib's value loss `min((v - R)^2, 10)`, the KL penalty; with and without the mask.
+    #[test]
+    fn rllib_gradient_and_stats_match_candle_autograd() {
+        let cfg = PpoConfig {
+            // Small enough that some squared errors exceed it (both sides of the min).
+            vf_loss_clip: 0.3,
+            ..crate::ppo::Preset::Rllib.ppo()
+        };
+        check_gradient(false, cfg);
+        check_gradient(true, cfg);
+    }
+
+    /// With the action mask: the candle path adds `MASKED_LOGIT` to the removed actions'
+    /// logits (probability exactly 0), the fused path skips them; entropy, log-probs and
+    /// every gradient agree, and the removed actions' logits get no gradient.
+    #[test]
+    fn masked_gradient_and_stats_match_candle_autograd() {
+        check_gradient(true, PpoConfig::default());
+    }
+
+    /// Redraw a rollout's actions among those its flags allow (with the masked
+    /// distribution's log-probs, perturbed as `rollout` does).
+    fn mask_rollout(net: &Net, r: &mut Rollout, seed: u64) {
+        let s = net.shape;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for (i, a) in r.actions.iter_mut().enumerate() {
+            let m = fulcrum_shared::mask::action_mask(&r.flags[i * s.flags..(i + 1) * s.flags]);
+            let ok: Vec<u32> = (0..s.actions as u32).filter(|&k| m >> k & 1 == 1).collect();
+            *a = ok[rng.random_range(0..ok.len())];
+        }
+        let n = r.actions.len();
+        let dev = Device::Cpu;
+        let obs = net.batch(&r.glyphs, &r.flags).unwrap();
+        let bias = crate::net::mask_bias(&r.flags, s.flags, s.actions, &dev).unwrap();
+        let logits = (net.forward(&obs).unwrap().0 + bias).unwrap();
+        let at = Tensor::from_slice(&r.actions, n, &dev).unwrap();
+        let lp: Vec<f32> = logprob_entropy(&logits, &at).unwrap().0.to_vec1().unwrap();
+        r.logprobs = lp
+            .iter()
+            .map(|x| x + rng.random_range(-0.4f32..0.4))
+            .collect();
+    }
+
+    fn check_gradient(masked: bool, cfg: PpoConfig) {
         let dev = Device::Cpu;
         for (k, shape) in shapes().into_iter().enumerate() {
+            // The first shape is no world's (flags != 2n + 2): its mask allows all.
+            if masked && k == 0 {
+                continue;
+            }
             let net = Net::new(shape, 7 + k as u64, &dev).unwrap();
             let n = 37;
-            let r = rollout(&net, n, 100 + k as u64);
-            let cfg = PpoConfig::default();
+            let mut r = rollout(&net, n, 100 + k as u64);
+            if masked {
+                mask_rollout(&net, &mut r, 300 + k as u64);
+            }
+            let bias = crate::net::mask_bias(&r.flags, shape.flags, shape.actions, &dev).unwrap();
             // Candle: loss and unclipped gradient.
             let t = |v: &[f32]| Tensor::from_slice(v, v.len(), &dev).unwrap();
             let obs = net.batch(&r.glyphs, &r.flags).unwrap();
@@ -1189,6 +1305,7 @@ mod tests {
                 advantages: &adv,
                 returns: &ret,
                 old_values: &ov,
+                logit_bias: masked.then_some(&bias),
             };
             let (l, want) = loss(&net, &mb, &cfg).unwrap();
             let (grads, want_norm) = clipped_grads(&net, &l, f32::MAX).unwrap();
@@ -1208,6 +1325,8 @@ mod tests {
                 &r.advantages,
                 &r.returns,
             )
+            .unwrap()
+            .with_action_mask(masked, &r.flags, shape.flags)
             .unwrap();
             assert!(data.differing_cells() > 0);
             assert!(data.dense_samples() > 0 && data.dense_samples() < n);
@@ -1230,6 +1349,18 @@ mod tests {
                     (a - b).abs() <= 1e-5 * scale,
                     "shape {k}, grad {i}: {a} vs {b} (max |g| {scale})"
                 );
+            }
+            if masked {
+                // An action removed in every sample gets no gradient at its bias.
+                let o = Offsets::new(shape);
+                let removed = (0..n).fold(u32::MAX, |m, i| {
+                    m & !fulcrum_shared::mask::action_mask(
+                        &r.flags[i * shape.flags..(i + 1) * shape.flags],
+                    )
+                });
+                for a in (0..shape.actions).filter(|&a| removed >> a & 1 == 1) {
+                    assert_eq!(fl.g[o.bp + a], 0.0, "shape {k}, action {a}");
+                }
             }
             let norm = fl.clip_and_step(f32::MAX, 0.0);
             assert!(close(norm, want_norm, 1e-5), "{norm} vs {want_norm}");
@@ -1262,6 +1393,7 @@ mod tests {
                     values: &r.values,
                     advantages: &r.advantages,
                     returns: &r.returns,
+                    action_mask: false,
                 };
                 crate::local::update(&a, &mut adam_a, &cfg, 1e-3, &mut rng_a, &d).unwrap();
                 reference_update(&b, &mut adam_b, &cfg, 1e-3, &mut rng_b, &d);
@@ -1325,6 +1457,7 @@ mod tests {
                     advantages: &adv,
                     returns: &ret,
                     old_values: &ov,
+                    logit_bias: None,
                 };
                 let (l, _) = loss(net, &batch, cfg).unwrap();
                 let (grads, _) = clipped_grads(net, &l, cfg.max_grad_norm).unwrap();

@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
-use crate::net::{sample, Net, NetShape};
+use crate::net::{mask_bias, sample, Net, NetShape};
 use crate::ppo::{Adam, PpoConfig, Stats};
 
 /// What to train.
@@ -31,6 +31,8 @@ pub struct LocalConfig {
     pub seed: u64,
     /// Weight of the intrinsic reward.
     pub beta: f32,
+    /// Per-mode action masking ([`fulcrum_shared::mask`]).
+    pub action_mask: bool,
     /// PPO hyperparameters.
     pub ppo: PpoConfig,
 }
@@ -44,6 +46,7 @@ impl Default for LocalConfig {
             hidden: 64,
             seed: 1,
             beta: 0.0,
+            action_mask: true,
             ppo: PpoConfig::default(),
         }
     }
@@ -111,6 +114,7 @@ pub fn train(
     let mut ep_ret = vec![0.0f32; m];
     let mut logs = Vec::new();
     let mut env_steps = 0u64;
+    let mut kl_coef = cfg.ppo.kl_coef;
     let mut g = vec![0u8; batch * c];
     let mut fl = vec![0u8; batch * f];
     let mut acts = vec![0u32; batch];
@@ -121,7 +125,7 @@ pub fn train(
     let mut trunc = vec![false; batch];
     let mut tvals = vec![0.0f32; batch];
     for u in 0..updates {
-        let lr = cfg.ppo.lr * (1.0 - u as f64 / updates as f64);
+        let lr = cfg.ppo.lr_at(u, updates);
         let mut log = UpdateLog::default();
         let mut ep_len_sum = 0u64;
         let mut intrinsic_sum = 0.0f64;
@@ -139,6 +143,11 @@ pub fn train(
             }
             let obs = net.batch(&g[base * c..(base + m) * c], &fl[base * f..(base + m) * f])?;
             let (logits, value) = net.forward(&obs)?;
+            let logits = if cfg.action_mask {
+                (logits + mask_bias(&fl[base * f..(base + m) * f], f, shape.actions, &dev)?)?
+            } else {
+                logits
+            };
             let (a, lp) = sample(&logits, &mut rng)?;
             let v: Vec<f32> = value.to_vec1()?;
             for e in 0..m {
@@ -206,7 +215,7 @@ pub fn train(
         log.stats = update(
             &net,
             &mut adam,
-            &cfg.ppo,
+            &PpoConfig { kl_coef, ..cfg.ppo },
             lr,
             &mut rng,
             &UpdateData {
@@ -217,8 +226,10 @@ pub fn train(
                 values: &vals,
                 advantages: &adv,
                 returns: &ret,
+                action_mask: cfg.action_mask,
             },
         )?;
+        kl_coef = cfg.ppo.adapt_kl(kl_coef, log.stats.approx_kl);
         log.env_steps = env_steps;
         if log.episodes > 0 {
             log.extrinsic_return /= log.episodes as f32;
@@ -248,6 +259,8 @@ pub struct UpdateData<'a> {
     pub advantages: &'a [f32],
     /// Returns.
     pub returns: &'a [f32],
+    /// Whether the policy's logits are masked per mode ([`fulcrum_shared::mask`]).
+    pub action_mask: bool,
 }
 
 /// PPO epochs over shuffled minibatches; returns the mean diagnostics.
@@ -265,16 +278,34 @@ pub fn update(
     d: &UpdateData,
 ) -> Result<Stats> {
     let n = d.actions.len();
+    // RLlib standardises advantages once over the batch: (A - mean) / max(std, floor),
+    // the population std.
+    let normed: Vec<f32> = if cfg.adv_norm_batch {
+        let k = n.max(1) as f64;
+        let mean = d.advantages.iter().map(|&a| a as f64).sum::<f64>() / k;
+        let var = d
+            .advantages
+            .iter()
+            .map(|&a| (a as f64 - mean).powi(2))
+            .sum::<f64>()
+            / k;
+        let s = var.sqrt().max(cfg.adv_std_floor as f64);
+        d.advantages
+            .iter()
+            .map(|&a| ((a as f64 - mean) / s) as f32)
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let advantages = if cfg.adv_norm_batch {
+        &normed[..]
+    } else {
+        d.advantages
+    };
     let data = Data::new(
-        net.shape,
-        d.glyphs,
-        d.flags,
-        d.actions,
-        d.logprobs,
-        d.values,
-        d.advantages,
-        d.returns,
-    )?;
+        net.shape, d.glyphs, d.flags, d.actions, d.logprobs, d.values, advantages, d.returns,
+    )?
+    .with_action_mask(d.action_mask, d.flags, net.shape.flags)?;
     let mut fl = Learner::load(net, adam)?;
     let mb = n / cfg.minibatches.max(1);
     let mut idx: Vec<usize> = (0..n).collect();

@@ -232,6 +232,30 @@ pub fn append_f32(out: &mut Vec<f32>, t: &Tensor) -> Result<()> {
     Ok(())
 }
 
+/// The logit bias of an action the mask removes: finite, so that `p * log p` is
+/// `0 * (-1e30) = 0` in the entropy (an infinite bias would give NaN there), and large
+/// enough that `exp` of it is exactly 0 in f32.
+pub const MASKED_LOGIT: f32 = -1e30;
+
+/// Per sample, 0 for the actions [`fulcrum_shared::mask::action_mask`] allows and
+/// [`MASKED_LOGIT`] for the others: `(n, actions)` for `n` samples of `flags` bytes each.
+pub fn mask_bias(flag_bytes: &[u8], flags: usize, actions: usize, dev: &Device) -> Result<Tensor> {
+    let n = flag_bytes.len() / flags.max(1);
+    let mut b = vec![0.0f32; n * actions];
+    for (row, fl) in b
+        .chunks_exact_mut(actions.max(1))
+        .zip(flag_bytes.chunks_exact(flags.max(1)))
+    {
+        let m = fulcrum_shared::mask::action_mask(fl);
+        for (a, x) in row.iter_mut().enumerate() {
+            if m >> a & 1 == 0 {
+                *x = MASKED_LOGIT;
+            }
+        }
+    }
+    Tensor::from_vec(b, (n, actions), dev)
+}
+
 /// log softmax over the last dimension.
 pub fn log_softmax(logits: &Tensor) -> Result<Tensor> {
     let max = logits.max_keepdim(D::Minus1)?;
@@ -257,7 +281,12 @@ pub fn sample(logits: &Tensor, rng: &mut ChaCha8Rng) -> Result<(Vec<u32>, Vec<f3
     for row in logp {
         let u: f32 = rng.random();
         let mut acc = 0.0;
-        let mut pick = row.len() - 1;
+        // The last action with nonzero probability when rounding leaves `u` above the
+        // running sum (masked actions have probability 0).
+        let mut pick = row
+            .iter()
+            .rposition(|&lp| lp > MASKED_LOGIT / 2.0)
+            .unwrap_or(row.len() - 1);
         for (a, lp) in row.iter().enumerate() {
             acc += lp.exp();
             if u < acc {

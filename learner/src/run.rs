@@ -36,7 +36,7 @@ use crate::config::RunConfig;
 use crate::gae::{gae, Rollout};
 use crate::local::{shape_for, update, UpdateData};
 use crate::net::Net;
-use crate::ppo::{Adam, Stats};
+use crate::ppo::{Adam, PpoConfig, Stats};
 
 /// The columns of `metrics.csv`, in order.
 pub const METRICS_COLUMNS: &[&str] = &[
@@ -286,6 +286,8 @@ struct Counters {
     first_pickup: u64,
     /// Chunks lost in transit (sequence gaps).
     lost: u64,
+    /// The KL penalty's coefficient now (it adapts after each update).
+    kl_coef: f32,
 }
 
 fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
@@ -307,11 +309,25 @@ pub fn run_learner(
     let net = Net::new(shape, cfg.seed, &dev)?;
     let mut adam = Adam::new(&net)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);
-    let mut ctr = Counters::default();
+    let mut ctr = Counters {
+        kl_coef: cfg.ppo.kl_coef,
+        ..Counters::default()
+    };
     let mut env_blobs: BTreeMap<String, Vec<u8>> = BTreeMap::new();
     let ckpt = paths.checkpoint();
     if ckpt.exists() {
         let extra = checkpoint::load(&ckpt, &net, &mut adam)?;
+        // The policy's action space is part of what was learnt: a checkpoint trained
+        // with the mask is not continued without it (or the other way round).
+        let masked = extra.meta.get("action_mask").map(|v| v == "true");
+        if masked.is_some_and(|m| m != cfg.action_mask) {
+            return Err(LearnerError::Run(format!(
+                "{} was trained {} the action mask but config.toml says action_mask = {}",
+                ckpt.display(),
+                if cfg.action_mask { "without" } else { "with" },
+                cfg.action_mask
+            )));
+        }
         let get = |k: &str| extra.counters.get(k).copied().unwrap_or(0);
         ctr.update = get("update");
         ctr.env_steps = get("env_steps");
@@ -320,6 +336,9 @@ pub fn run_learner(
         ctr.first_pickup = get("first_pickup_step");
         ctr.lost = get("lost_chunks");
         ctr.wall_s = extra.floats.get("wall_s").copied().unwrap_or(0.0);
+        if let Some(&k) = extra.floats.get("kl_coef") {
+            ctr.kl_coef = k as f32;
+        }
         if let Some(r) = extra
             .blobs
             .get("learner_rng")
@@ -443,7 +462,7 @@ pub fn run_learner(
         while batch.len() < target(&roster) {
             if stop.load(Ordering::Relaxed) {
                 ctr.wall_s = wall0 + started.elapsed().as_secs_f64();
-                save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
+                save(paths, cfg, &net, &adam, &rng, &ctr, &env_blobs)?;
                 return Ok(LearnerExit::Interrupted);
             }
             let mut got = false;
@@ -610,15 +629,18 @@ pub fn run_learner(
         }
 
         // 3. PPO.
-        let lr = if remote {
+        let lr = if remote && ppo.lr_anneal {
             ppo.lr * (1.0 - (ctr.env_steps as f64 / cfg.total_steps as f64).min(1.0))
         } else {
-            ppo.lr * (1.0 - ctr.update as f64 / updates as f64)
+            ppo.lr_at(ctr.update, updates)
         };
         row.stats = update(
             &net,
             &mut adam,
-            &ppo,
+            &PpoConfig {
+                kl_coef: ctr.kl_coef,
+                ..ppo
+            },
             lr,
             &mut rng,
             &UpdateData {
@@ -629,8 +651,10 @@ pub fn run_learner(
                 values: &d_val,
                 advantages: &d_adv,
                 returns: &d_ret,
+                action_mask: cfg.action_mask,
             },
         )?;
+        ctr.kl_coef = ppo.adapt_kl(ctr.kl_coef, row.stats.approx_kl);
         ctr.update += 1;
         ctr.env_steps += total as u64;
         ctr.episodes += episodes;
@@ -698,7 +722,7 @@ pub fn run_learner(
         progress(&row, planned);
         if ctr.update % cfg.checkpoint_every == 0 || !more(&ctr) {
             ctr.wall_s = row.wall_s;
-            save(paths, &net, &adam, &rng, &ctr, &env_blobs)?;
+            save(paths, cfg, &net, &adam, &rng, &ctr, &env_blobs)?;
         }
     }
     Ok(LearnerExit::Finished)
@@ -739,6 +763,7 @@ fn admit(
 
 fn save(
     paths: &RunPaths,
+    cfg: &RunConfig,
     net: &Net,
     adam: &Adam,
     rng: &ChaCha8Rng,
@@ -755,6 +780,10 @@ fn save(
     extra.counters.insert("dropped_chunks".into(), ctr.dropped);
     extra.counters.insert("lost_chunks".into(), ctr.lost);
     extra.floats.insert("wall_s".into(), ctr.wall_s);
+    extra.floats.insert("kl_coef".into(), ctr.kl_coef as f64);
+    extra
+        .meta
+        .insert("action_mask".into(), cfg.action_mask.to_string());
     extra
         .blobs
         .insert("learner_rng".into(), checkpoint::rng_state(rng));

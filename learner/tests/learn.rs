@@ -72,3 +72,25 @@ fn ppo_learns_the_room_with_empowerment() {
         "the bonus was paid"
     );
 }
+
+/// The paper's first world with the defaults (per-mode action masking, the advantage
+/// floor): PPO solves exp1-tree (success >= 0.9 over the last updates) within 300k env
+/// steps. Without masking a uniform policy succeeds once in about 236k env steps, so an
+/// implementation whose mask removed nothing would not get there.
+#[test]
+fn masked_ppo_learns_exp1_tree_within_300k_steps() {
+    let w = load_world("exp1-tree").unwrap();
+    let cfg = LocalConfig {
+        total_steps: 300_000,
+        seed: 1,
+        ..LocalConfig::default()
+    };
+    assert!(cfg.action_mask, "masking is the default");
+    let (_, logs) = train(&w, &cfg, &|_| 0.0, |_| {}).unwrap();
+    let s = final_success(&logs);
+    assert!(
+        s >= 0.9,
+        "success {s} after {} env steps",
+        logs.last().unwrap().env_steps
+    );
+}

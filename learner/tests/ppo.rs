@@ -167,6 +167,7 @@ fn clipped_surrogate_and_value_loss() {
         advantages: &advt,
         returns: &rett,
         old_values: &ovt,
+        logit_bias: None,
     };
     let (total, stats) = loss(&net, &mb, &cfg).unwrap();
     // Reference, scalar by scalar (CleanRL's formulas).

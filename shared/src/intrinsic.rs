@@ -12,6 +12,20 @@
 //!   would go on, the learner bootstraps from V(s_{t+1}), and the potential is the state's
 //!   own, b_t = gamma * E(s_{t+1}) - E(s_t). Staying where E is high pays
 //!   (gamma - 1) * E < 0 per step: only raising E is paid.
+//! * **horizon-potential**: potential-based shaping as `potential`, with the potential
+//!   Phi(s) = sum over h = 1..H of E^h(s), H the form's horizon (one horizon in every
+//!   state, the larger of the two configured). For an object with two states, such as
+//!   the tree, E^h(s) is 1 bit when the agent can change the object within h steps and 0
+//!   otherwise, so Phi(s) = H + 1 - d(s), d(s) being the fewest steps in which the agent
+//!   can change it (0 when d(s) > H): every step that brings the object one step
+//!   closer to being affected raises Phi by one. The service computes Phi for every
+//!   state in the same backward set propagation that gives E (every horizon at once).
+//!   As with `potential`, the terms telescope and the task's optimal policies are kept.
+//! * **first-visit**: b_t = E(s_{t+1}) the first time in an episode that E > 0 is
+//!   reached with the inventory s_{t+1} holds, 0 otherwise. Inventories only grow
+//!   within an episode (tools are picked up, never dropped), so one flag per world says
+//!   whether the current inventory has been paid. At most one payment per inventory
+//!   state per episode: standing where E is high earns nothing more (no beacon trap).
 //! * **count** (a novelty bonus over the exact state index): b_t = 1 / sqrt(N(s_{t+1})),
 //!   N counting every visit by every actor of the run so far, this one included (kept by
 //!   the empowerment service, which indexes every state).
@@ -32,15 +46,21 @@ pub enum Intrinsic {
     Potential,
     /// beta / sqrt(N(s_{t+1})).
     Count,
+    /// beta * (gamma * Phi(s_{t+1}) - Phi(s_t)), Phi = sum over h = 1..H of E^h.
+    HorizonPotential,
+    /// beta * E(s_{t+1}), paid once per inventory state per episode.
+    FirstVisit,
 }
 
 impl Intrinsic {
     /// Every form, in the order of the documentation.
-    pub const ALL: [Intrinsic; 4] = [
+    pub const ALL: [Intrinsic; 6] = [
         Intrinsic::None,
         Intrinsic::Additive,
         Intrinsic::Potential,
         Intrinsic::Count,
+        Intrinsic::HorizonPotential,
+        Intrinsic::FirstVisit,
     ];
 
     /// The name used on the command line and in `config.toml`.
@@ -50,12 +70,50 @@ impl Intrinsic {
             Intrinsic::Additive => "additive",
             Intrinsic::Potential => "potential",
             Intrinsic::Count => "count",
+            Intrinsic::HorizonPotential => "horizon-potential",
+            Intrinsic::FirstVisit => "first-visit",
         }
+    }
+
+    /// The default beta of the form, given the world file's (which is the paper's, for
+    /// the additive bonus). The two forms that pay a bounded amount per episode get a
+    /// beta of their own, because they sum to a few units where the additive bonus sums
+    /// to a bit per step:
+    ///
+    /// * horizon-potential: the shaping terms of a path from Phi = 0 to the object
+    ///   telescope to about beta * H * (bits of the object), 8 steps of the tree for
+    ///   H = 8; beta = 0.05 makes that 0.4, well under the task's reward of 1, while
+    ///   each step closer is paid 0.05, not lost in the value noise.
+    /// * first-visit: at most one payment of E (1-2 bits on the paper's worlds) per
+    ///   inventory state; beta = 0.1 pays 0.1-0.2, again under the task's reward.
+    pub fn default_beta(self, world_beta: f64) -> f64 {
+        match self {
+            Intrinsic::None => 0.0,
+            Intrinsic::HorizonPotential => 0.05,
+            Intrinsic::FirstVisit => 0.1,
+            _ => world_beta,
+        }
+    }
+
+    /// Whether the service answers Phi = sum over h of E^h instead of E.
+    pub fn horizon_sum(self) -> bool {
+        self == Intrinsic::HorizonPotential
+    }
+
+    /// Whether b_t needs the potential of the current state (E(s_t) or Phi(s_t)).
+    pub fn is_potential(self) -> bool {
+        matches!(self, Intrinsic::Potential | Intrinsic::HorizonPotential)
     }
 
     /// Whether the form needs E from the service (the count form needs visit counts).
     pub fn uses_empowerment(self) -> bool {
-        matches!(self, Intrinsic::Additive | Intrinsic::Potential)
+        matches!(
+            self,
+            Intrinsic::Additive
+                | Intrinsic::Potential
+                | Intrinsic::HorizonPotential
+                | Intrinsic::FirstVisit
+        )
     }
 
     /// Whether the form needs the service at all.
@@ -78,14 +136,16 @@ impl FromStr for Intrinsic {
             .find(|f| f.name() == s)
             .ok_or_else(|| {
                 format!(
-                    "unknown intrinsic reward form '{s}' (forms: none, additive, potential, count)"
+                    "unknown intrinsic reward form '{s}' (forms: none, additive, potential, count, horizon-potential, first-visit)"
                 )
             })
     }
 }
 
-/// b_t for one transition. `value_next` is E(s_{t+1}) (bits) for additive and
-/// potential, N(s_{t+1}) (>= 1) for count; `value_now` is E(s_t) (potential only).
+/// b_t for one transition. `value_next` is E(s_{t+1}) (bits) for additive, potential
+/// and first-visit, Phi(s_{t+1}) for horizon-potential, N(s_{t+1}) (>= 1) for count;
+/// `value_now` is the potential of s_t (the potential forms only). First-visit's "once
+/// per inventory" is kept by [`Shaping::chunk`]; here it pays E(s_{t+1}).
 pub fn bonus(
     form: Intrinsic,
     gamma: f32,
@@ -96,11 +156,12 @@ pub fn bonus(
     match form {
         Intrinsic::None => 0.0,
         Intrinsic::Additive => value_next,
-        Intrinsic::Potential => {
+        Intrinsic::Potential | Intrinsic::HorizonPotential => {
             let next = if terminated { 0.0 } else { value_next };
             gamma * next - value_now
         }
         Intrinsic::Count => 1.0 / value_next.max(1.0).sqrt(),
+        Intrinsic::FirstVisit => value_next,
     }
 }
 
@@ -112,22 +173,31 @@ pub struct Shaping {
     pub form: Intrinsic,
     /// The discount of the run's returns.
     pub gamma: f32,
-    /// E of the initial state (potential only).
+    /// The potential of the initial state (potential forms only).
     pub phi_reset: f32,
+    /// The initial state's inventory (first-visit).
+    pub inventory_reset: u16,
 }
 
 impl Shaping {
     /// b_t for a chunk laid out time-major (index t * m + e), from the service's values
-    /// for each s_{t+1} (`next`) and the termination/truncation flags.
+    /// for each s_{t+1} (`next`), the inventory of each s_{t+1} and the
+    /// termination/truncation flags.
     ///
-    /// `phi[e]` holds E(s_t) of world e's current state on entry (the first step of the
-    /// chunk) and of its current state on return.
+    /// `phi[e]` holds the potential of world e's current state on entry (the first step
+    /// of the chunk) and of its current state on return (potential forms); `inv[e]` and
+    /// `paid[e]` the current state's inventory and whether first-visit has paid for it in
+    /// this episode (first-visit). Both carry over between chunks (and checkpoints).
+    #[allow(clippy::too_many_arguments)]
     pub fn chunk(
         &self,
         next: &[f32],
+        next_inventory: &[u16],
         terminated: &[u8],
         truncated: &[u8],
         phi: &mut [f32],
+        inv: &mut [u16],
+        paid: &mut [bool],
         out: &mut [f32],
     ) {
         let m = phi.len();
@@ -136,6 +206,22 @@ impl Shaping {
             let ended = terminated[i] == 1 || truncated[i] == 1;
             *b = bonus(self.form, self.gamma, phi[e], next[i], terminated[i] == 1);
             phi[e] = if ended { self.phi_reset } else { next[i] };
+            if self.form == Intrinsic::FirstVisit {
+                if next_inventory[i] != inv[e] {
+                    paid[e] = false;
+                }
+                if paid[e] || next[i] <= 0.0 {
+                    *b = 0.0;
+                } else {
+                    paid[e] = true;
+                }
+            }
+            inv[e] = next_inventory[i];
+            if ended {
+                // The next episode starts from the initial state: nothing paid yet.
+                paid[e] = false;
+                inv[e] = self.inventory_reset;
+            }
         }
     }
 }

@@ -20,6 +20,8 @@ pub mod generate;
 pub mod hash;
 /// Intrinsic reward forms (additive, potential-based shaping, count novelty).
 pub mod intrinsic;
+/// Per-mode action masking from the observation's flags.
+pub mod mask;
 /// Shared-memory message layouts and service names.
 pub mod msg;
 /// World files: parsing and validation with file:line:col errors.

@@ -419,6 +419,8 @@ pub struct EnvRecord {
     pub int_return: f32,
     /// Whether a tool was picked up in this episode.
     pub picked: bool,
+    /// Whether the first-visit bonus has paid for the current inventory in this episode.
+    pub paid: bool,
 }
 
 impl EnvRecord {
@@ -429,11 +431,12 @@ impl EnvRecord {
             ext_return: 0.0,
             int_return: 0.0,
             picked: false,
+            paid: false,
         }
     }
 
     /// [`ENV_BYTES`] bytes: state (38), t (4), rewarded (2), returns (2 x 4), picked (1),
-    /// padding (3).
+    /// paid (1), padding (2).
     pub fn to_bytes(&self) -> [u8; ENV_BYTES] {
         let mut b = [0u8; ENV_BYTES];
         b[..38].copy_from_slice(&self.episode.state.to_bytes());
@@ -442,6 +445,7 @@ impl EnvRecord {
         b[44..48].copy_from_slice(&self.ext_return.to_le_bytes());
         b[48..52].copy_from_slice(&self.int_return.to_le_bytes());
         b[52] = self.picked as u8;
+        b[53] = self.paid as u8;
         b
     }
 
@@ -461,6 +465,7 @@ impl EnvRecord {
             ext_return: f32::from_le_bytes(f(44)),
             int_return: f32::from_le_bytes(f(48)),
             picked: b[52] == 1,
+            paid: b[53] == 1,
         })
     }
 }
@@ -696,6 +701,7 @@ mod tests {
             ext_return: 1.5,
             int_return: 0.123_456_79,
             picked: true,
+            paid: true,
         };
         assert_eq!(EnvRecord::from_bytes(&r.to_bytes()), Some(r));
     }

@@ -8,7 +8,24 @@ fn shaping(form: Intrinsic, phi_reset: f32) -> Shaping {
         form,
         gamma: G,
         phi_reset,
+        inventory_reset: 0,
     }
+}
+
+/// `chunk` with every inventory 0 (no pick-ups).
+fn chunk(sh: Shaping, next: &[f32], term: &[u8], trunc: &[u8], phi: &mut [f32], out: &mut [f32]) {
+    let m = phi.len();
+    let (mut inv, mut paid) = (vec![0u16; m], vec![false; m]);
+    sh.chunk(
+        next,
+        &vec![0; next.len()],
+        term,
+        trunc,
+        phi,
+        &mut inv,
+        &mut paid,
+        out,
+    );
 }
 
 const G: f32 = 0.99;
@@ -48,7 +65,14 @@ fn a_chunk_with_a_terminal_and_a_truncated_step() {
     let mut out = [0.0f32; 10];
 
     let mut phi = [0.5, 0.0];
-    shaping(Intrinsic::Potential, 0.5).chunk(&next, &term, &trunc, &mut phi, &mut out);
+    chunk(
+        shaping(Intrinsic::Potential, 0.5),
+        &next,
+        &term,
+        &trunc,
+        &mut phi,
+        &mut out,
+    );
     // World 0: 0.99*1 - 0.5 = 0.49; 0.99*1 - 1 = -0.01; terminal: 0 - 1 = -1;
     // after the reset: 0.99*1 - 0.5 = 0.49 (truncated keeps the state's own potential);
     // after the next reset: 0.99*0 - 0.5 = -0.5. World 1: 0 everywhere.
@@ -64,12 +88,26 @@ fn a_chunk_with_a_terminal_and_a_truncated_step() {
     assert!(close(sum, -0.5), "{sum}");
 
     let mut phi = [0.5, 0.0];
-    shaping(Intrinsic::Additive, 0.5).chunk(&next, &term, &trunc, &mut phi, &mut out);
+    chunk(
+        shaping(Intrinsic::Additive, 0.5),
+        &next,
+        &term,
+        &trunc,
+        &mut phi,
+        &mut out,
+    );
     assert_eq!(out, next);
 
     let counts = [1.0, 1.0, 4.0, 2.0, 16.0, 3.0, 1.0, 4.0, 25.0, 5.0];
     let mut phi = [0.0, 0.0];
-    shaping(Intrinsic::Count, 0.0).chunk(&counts, &term, &trunc, &mut phi, &mut out);
+    chunk(
+        shaping(Intrinsic::Count, 0.0),
+        &counts,
+        &term,
+        &trunc,
+        &mut phi,
+        &mut out,
+    );
     for (o, n) in out.iter().zip(counts) {
         assert!(close(*o, 1.0 / f32::sqrt(n)));
     }
@@ -82,4 +120,70 @@ fn forms_parse_and_print() {
     }
     let e = "bonus".parse::<Intrinsic>().unwrap_err();
     assert!(e.contains("'bonus'") && e.contains("potential"), "{e}");
+}
+
+#[test]
+fn horizon_potential_is_potential_shaping_of_phi() {
+    // Phi counts steps: 3 -> 4 pays 0.99 * 4 - 3 = 0.96; 4 -> terminal pays -4.
+    assert!(close(
+        bonus(Intrinsic::HorizonPotential, G, 3.0, 4.0, false),
+        0.96
+    ));
+    assert!(close(
+        bonus(Intrinsic::HorizonPotential, G, 4.0, 9.0, true),
+        -4.0
+    ));
+    assert!(Intrinsic::HorizonPotential.horizon_sum());
+    assert!(!Intrinsic::Potential.horizon_sum());
+}
+
+#[test]
+fn first_visit_pays_once_per_inventory_per_episode() {
+    // One world, eight steps. E of s_{t+1}: 0, 1 (beacon next to the axe), 1 (still
+    // there), 0 (picked the axe up: inventory 1), 2 (next to the tree, axe held), 2,
+    // terminal at 1; then the new episode (inventory 0 again) reaches E = 1.
+    let next = [0.0, 1.0, 1.0, 0.0, 2.0, 2.0, 1.0, 1.0];
+    let inv = [0u16, 0, 0, 1, 1, 1, 1, 0];
+    let term = [0, 0, 0, 0, 0, 0, 1, 0];
+    let trunc = [0u8; 8];
+    let sh = Shaping {
+        form: Intrinsic::FirstVisit,
+        gamma: G,
+        phi_reset: 0.0,
+        inventory_reset: 0,
+    };
+    let (mut phi, mut cur, mut paid) = ([0.0f32], [0u16], [false]);
+    let mut out = [0.0f32; 8];
+    sh.chunk(
+        &next, &inv, &term, &trunc, &mut phi, &mut cur, &mut paid, &mut out,
+    );
+    // Paid: the first E > 0 without the axe (1), the first with it (2), and the first of
+    // the next episode (1). Standing on the beacon earns nothing more.
+    assert_eq!(out, [0.0, 1.0, 0.0, 0.0, 2.0, 0.0, 0.0, 1.0]);
+    assert_eq!((cur, paid), ([0], [true]));
+    // Split in two chunks, the carried flags give the same rewards.
+    let (mut phi, mut cur, mut paid) = ([0.0f32], [0u16], [false]);
+    let mut a = [0.0f32; 3];
+    let mut b = [0.0f32; 5];
+    sh.chunk(
+        &next[..3],
+        &inv[..3],
+        &term[..3],
+        &trunc[..3],
+        &mut phi,
+        &mut cur,
+        &mut paid,
+        &mut a,
+    );
+    sh.chunk(
+        &next[3..],
+        &inv[3..],
+        &term[3..],
+        &trunc[3..],
+        &mut phi,
+        &mut cur,
+        &mut paid,
+        &mut b,
+    );
+    assert_eq!([&a[..], &b[..]].concat(), out.to_vec());
 }

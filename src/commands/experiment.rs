@@ -38,7 +38,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use clap::Parser;
 use fulcrum_learner::run::{read_metrics, MetricsRow, RunPaths};
-use fulcrum_learner::stats::{self, Point, Welch};
+use fulcrum_learner::stats::{self, LogRank, Point, Welch};
 use serde::{Deserialize, Serialize};
 
 use crate::cli::{ExperimentArgs, TrainArgs};
@@ -102,10 +102,26 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
             "baseline" => vec!["--no-empowerment".to_string()],
             "none" => vec!["--intrinsic".to_string(), "none".to_string()],
             "empowerment" => with_beta(form, a.beta),
-            "additive" | "potential" | "count" => with_beta(name, a.beta),
+            "additive" | "potential" | "count" | "horizon-potential" | "first-visit" => {
+                with_beta(name, a.beta)
+            }
+            "baseline-unmasked" => vec![
+                "--no-empowerment".to_string(),
+                "--no-action-mask".to_string(),
+            ],
+            "cleanrl" | "rllib" => vec![
+                "--no-empowerment".to_string(),
+                "--ppo-preset".to_string(),
+                name.to_string(),
+            ],
+            "additive-fixed" => {
+                let mut v = vec!["--horizon-mode".to_string(), "fixed".to_string()];
+                v.extend(with_beta("additive", a.beta));
+                v
+            }
             other => {
                 return bad(format!(
-                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, potential, count; for betas use --beta-sweep)"
+                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, first-visit, count, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
                 ))
             }
         };
@@ -741,6 +757,13 @@ struct ArmSummary {
     success_std: Vec<Option<f64>>,
     return_mean: Vec<Option<f64>>,
     return_std: Vec<Option<f64>>,
+    /// Steps to threshold with a seed that never got there counted at the budget
+    /// (censored): interquartile mean, its percentile-bootstrap 95% interval, median.
+    iqm_steps: Option<f64>,
+    iqm_ci: Option<(f64, f64)>,
+    median_steps: Option<f64>,
+    /// Kaplan-Meier fraction of seeds solved by each grid step.
+    solved_by: Vec<Option<f64>>,
 }
 
 #[derive(Debug, Serialize)]
@@ -750,6 +773,10 @@ struct Comparison {
     /// Steps to threshold, a seed that never reached it counted at the budget.
     steps_to_threshold: Option<Welch>,
     auc: Option<Welch>,
+    /// Fisher's exact test (two-sided) on the seeds that reached the threshold.
+    fisher_p: f64,
+    /// The log-rank test of the two "solved by step t" curves (censored at the budget).
+    log_rank: Option<LogRank>,
 }
 
 #[derive(Debug, Serialize)]
@@ -776,6 +803,8 @@ fn aggregate(
     let mut out = Vec::new();
     let mut censored: BTreeMap<String, Vec<f64>> = BTreeMap::new();
     let mut aucs: BTreeMap<String, Vec<f64>> = BTreeMap::new();
+    let mut events: BTreeMap<String, Vec<(f64, bool)>> = BTreeMap::new();
+    let mut solved: BTreeMap<String, (usize, usize)> = BTreeMap::new();
     for arm in arms {
         let mine: Vec<&Job> = jobs
             .iter()
@@ -827,6 +856,10 @@ fn aggregate(
                 .entry(arm.name.clone())
                 .or_default()
                 .push(reach.unwrap_or(spec.steps as f64));
+            events
+                .entry(arm.name.clone())
+                .or_default()
+                .push((reach.unwrap_or(spec.steps as f64), reach.is_some()));
             aucs.entry(arm.name.clone()).or_default().push(auc);
             succ_curves.push(sc);
             ret_curves.push(rc);
@@ -839,7 +872,26 @@ fn aggregate(
             per_seed.iter().filter_map(f).collect()
         };
         let (sb, rb) = (stats::band(&succ_curves), stats::band(&ret_curves));
+        let cens = censored.get(&arm.name).cloned().unwrap_or_default();
+        let ev = events.get(&arm.name).cloned().unwrap_or_default();
+        solved.insert(arm.name.clone(), (reached.len(), per_seed.len()));
+        let median = |x: &[f64]| {
+            let mut v = x.to_vec();
+            v.sort_by(f64::total_cmp);
+            let n = v.len();
+            if n == 0 {
+                f64::NAN
+            } else if n % 2 == 1 {
+                v[n / 2]
+            } else {
+                0.5 * (v[n / 2 - 1] + v[n / 2])
+            }
+        };
         out.push(ArmSummary {
+            iqm_steps: finite(stats::iqm(&cens)),
+            iqm_ci: stats::bootstrap_ci(&cens, stats::iqm, 2000, 0x1a2b, 0.95),
+            median_steps: finite(median(&cens)),
+            solved_by: stats::solved_by(&ev, &g).into_iter().map(finite).collect(),
             name: arm.name.clone(),
             args: arm.args.clone(),
             seeds: mine.len(),
@@ -874,6 +926,15 @@ fn aggregate(
                     &get(&censored, &first.name),
                 ),
                 auc: stats::welch(&get(&aucs, &arm.name), &get(&aucs, &first.name)),
+                fisher_p: {
+                    let (a, an) = solved.get(&arm.name).copied().unwrap_or_default();
+                    let (b, bn) = solved.get(&first.name).copied().unwrap_or_default();
+                    stats::fisher_exact(a, an, b, bn)
+                },
+                log_rank: stats::log_rank(
+                    &events.get(&arm.name).cloned().unwrap_or_default(),
+                    &events.get(&first.name).cloned().unwrap_or_default(),
+                ),
             });
         }
     }
@@ -957,6 +1018,42 @@ fn markdown(s: &Summary) -> String {
             a.finished,
         );
     }
+    t += &format!(
+        "\nTime to solve (a seed that never reached {th} counts as censored at the budget, {b}): \
+         interquartile mean with a percentile-bootstrap 95% interval (2000 resamples of the seeds), \
+         median; against the first arm, Fisher's exact test on the seeds solved and the log-rank \
+         test of the \"solved by step t\" curves (both two-sided):\n\n\
+         | arm | solved | IQM steps to {th} (95% CI) | median | Fisher p | log-rank chi2, p |\n|---|---|---|---|---|---|\n",
+        th = s.threshold,
+        b = steps_text(s.steps as f64),
+    );
+    for (i, a) in s.arms.iter().enumerate() {
+        let c = i.checked_sub(1).and_then(|k| s.comparisons.get(k));
+        let iqm = match (a.iqm_steps, a.iqm_ci) {
+            (Some(m), Some((lo, hi))) => {
+                format!(
+                    "{} ({} - {})",
+                    steps_text(m),
+                    steps_text(lo),
+                    steps_text(hi)
+                )
+            }
+            _ => "-".into(),
+        };
+        t += &format!(
+            "| {} | {}/{} | {} | {} | {} | {} |\n",
+            a.name,
+            a.reached,
+            a.finished,
+            iqm,
+            a.median_steps.map_or("-".into(), steps_text),
+            c.map_or("-".into(), |c| p_text(c.fisher_p)),
+            c.map_or("-".into(), |c| match &c.log_rank {
+                Some(l) => format!("{:.2}, {}", l.chi2, p_text(l.p)),
+                None => "- (no seed solved)".into(),
+            }),
+        );
+    }
     if !s.comparisons.is_empty() {
         t += "\nWelch's t-test against the first arm (two-sided; steps to threshold count a seed that never got there at the budget):\n\n\
               | arm | against | steps to threshold: t, df, p | area: t, df, p |\n|---|---|---|---|\n";
@@ -1012,11 +1109,31 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
             series(|a| &a.return_mean, |a| &a.return_std),
             None,
         ),
+        (
+            "solved",
+            "fraction of seeds solved",
+            s.arms
+                .iter()
+                .map(|a| crate::plot::Band {
+                    name: a.name.clone(),
+                    mean: a.solved_by.iter().map(|v| v.unwrap_or(f64::NAN)).collect(),
+                    std: vec![0.0; a.solved_by.len()],
+                })
+                .collect(),
+            Some((0.0, 1.0)),
+        ),
     ] {
         let chart = crate::plot::BandChart {
             y_range: unit,
             ..crate::plot::BandChart::over_steps(
-                format!("{}: {y}, mean ± std over {seeds} seeds", s.world),
+                if file == "solved" {
+                    format!(
+                        "{}: seeds at success {} by env step t ({seeds} seeds, Kaplan-Meier)",
+                        s.world, s.threshold
+                    )
+                } else {
+                    format!("{}: {y}, mean ± std over {seeds} seeds", s.world)
+                },
                 y.to_string(),
                 s.grid.clone(),
                 bands,

@@ -76,7 +76,7 @@ pub fn record(
     let net = Net::new(shape, cfg.seed, &Device::Cpu)?;
     let mut adam = Adam::new(&net)?;
     checkpoint::load(&ckpt, &net, &mut adam)?;
-    let mut policy = Policy::new(shape);
+    let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
     anyhow::ensure!(
         policy.set(&net.flat()?),
         "the checkpoint's weights do not fit the network"

@@ -54,6 +54,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         );
     }
     let cfg = ServeConfig {
+        horizon_sum: a.horizon_sum,
         namespace: a.namespace.clone(),
         tool,
         objects: set.clone(),

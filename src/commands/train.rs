@@ -23,7 +23,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::ppo::PpoConfig;
+use fulcrum_learner::ppo::{PpoConfig, Preset};
 use fulcrum_learner::run::{read_metrics, run_learner, LearnerExit, RunPaths};
 use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::World;
@@ -198,6 +198,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         let changed: Vec<&str> = [
             (a.beta.is_some(), "--beta"),
             (a.no_empowerment, "--no-empowerment"),
+            (a.no_action_mask, "--no-action-mask"),
             (a.intrinsic.is_some(), "--intrinsic"),
             (a.horizon_mode.is_some(), "--horizon-mode"),
             (a.seed.is_some(), "--seed"),
@@ -212,6 +213,7 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
             (a.lr.is_some(), "--lr"),
             (a.epochs.is_some(), "--epochs"),
             (a.minibatches.is_some(), "--minibatches"),
+            (a.ppo_preset.is_some(), "--ppo-preset"),
         ]
         .into_iter()
         .filter_map(|(c, n)| c.then_some(n))
@@ -326,6 +328,12 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         (None, false) => Intrinsic::Additive,
     };
     let fixed = a.horizon_mode.as_deref() == Some("fixed");
+    let preset: Preset = a
+        .ppo_preset
+        .as_deref()
+        .unwrap_or("fulcrum")
+        .parse()
+        .map_err(super::BadInput)?;
     let n = cores();
     let actors = a.actors.unwrap_or(n.saturating_sub(1).max(1));
     let seed = a.seed.unwrap_or(1);
@@ -342,13 +350,16 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         total_steps: a.steps.unwrap_or(500_000),
         actors,
         envs_per_actor: a.envs_per_actor.unwrap_or(8),
-        steps_per_chunk: a.steps_per_chunk.unwrap_or(128),
+        steps_per_chunk: a
+            .steps_per_chunk
+            .or(preset.steps_per_chunk())
+            .unwrap_or(128),
         learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
         hidden: a.hidden.unwrap_or(64),
         beta: if form == Intrinsic::None {
             0.0
         } else {
-            a.beta.unwrap_or(e.beta)
+            a.beta.unwrap_or(form.default_beta(e.beta))
         },
         empowerment: form.uses_service(),
         intrinsic: form.name().into(),
@@ -364,8 +375,9 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         checkpoint_every: a.checkpoint_every.unwrap_or(10),
         remote: a.listen.is_some(),
         stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
+        action_mask: !a.no_action_mask,
         ppo: {
-            let d = PpoConfig::default();
+            let d = preset.ppo();
             PpoConfig {
                 epochs: a.epochs.unwrap_or(d.epochs),
                 minibatches: a.minibatches.unwrap_or(d.minibatches),
@@ -524,6 +536,9 @@ impl Supervisor {
         }
         if !self.cfg.objects.is_empty() {
             args.extend(["--objects".into(), self.cfg.objects.clone()]);
+        }
+        if self.cfg.form().horizon_sum() {
+            args.push("--horizon-sum".into());
         }
         let mut cmd = self.child(&args, cores());
         cmd.stdout(Stdio::piped());

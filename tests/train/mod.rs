@@ -321,12 +321,33 @@ fn deterministic(r: &MetricsRow) -> String {
 
 #[test]
 fn a_resumed_run_equals_an_uninterrupted_one_bit_for_bit() {
-    let a = run_dir("exact-a");
-    let b = run_dir("exact-b");
+    resumed_equals_uninterrupted("exact", &[]);
+}
+
+/// The new forms carry state across chunks (first-visit's paid flags, the potential of
+/// each world's state) and the unmasked policy samples other actions: each resumes to the
+/// same bits as a run that never stopped.
+#[test]
+fn resumes_are_bit_for_bit_with_every_new_option() {
+    for (tag, extra) in [
+        ("exact-fv", &["--intrinsic", "first-visit"][..]),
+        ("exact-hp", &["--intrinsic", "horizon-potential"][..]),
+        ("exact-nomask", &["--no-action-mask"][..]),
+        // The KL coefficient adapts after each update and is checkpointed.
+        ("exact-rllib", &["--ppo-preset", "rllib"][..]),
+    ] {
+        resumed_equals_uninterrupted(tag, extra);
+    }
+}
+
+fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
+    let a = run_dir(&format!("{tag}-a"));
+    let b = run_dir(&format!("{tag}-b"));
     // Synchronous, one actor, with empowerment: 6 updates of 128 steps.
     let common = [
         &["room", "--actors", "1", "--steps", "768", "--seed", "7"][..],
         SMALL,
+        extra,
     ]
     .concat();
     let (s, err, _) = finish(
@@ -575,7 +596,13 @@ fn the_whole_system_learns_the_room() {
 
 #[test]
 fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
-    for form in ["potential", "count", "none"] {
+    for form in [
+        "potential",
+        "count",
+        "none",
+        "horizon-potential",
+        "first-visit",
+    ] {
         let dir = run_dir(form);
         let d = dir.to_str().unwrap();
         let c = train(
@@ -598,6 +625,19 @@ fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
                 "potential" => {
                     assert!(r.intrinsic_mean.abs() < 4.0, "{r:?}");
                     assert!((0.0..=1.0).contains(&r.e_positive_frac), "{r:?}");
+                }
+                // gamma Phi' - Phi, Phi the sum of E^h over h <= 8 (a few bits each).
+                "horizon-potential" => {
+                    assert!(r.intrinsic_mean.abs() < 32.0, "{r:?}");
+                }
+                // E paid at most once per inventory per episode: far under E per step.
+                "first-visit" => {
+                    assert!(r.intrinsic_mean >= 0.0 && r.intrinsic_mean < 0.5, "{r:?}");
+                    // NaN when no episode ended in the update.
+                    assert!(
+                        r.intrinsic_return.is_nan() || r.intrinsic_return >= 0.0,
+                        "{r:?}"
+                    );
                 }
                 // 1 / sqrt(N) with N >= 1, and N grows: the mean is in (0, 1].
                 "count" => {
