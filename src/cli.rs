@@ -345,6 +345,15 @@ pub struct TrainArgs {
     /// not-held horizon everywhere [default: switch].
     #[arg(long, value_parser = ["switch", "fixed"])]
     pub horizon_mode: Option<String>,
+    /// Two value heads, as RND: the task reward and the intrinsic reward get their own
+    /// value estimates and GAE, the intrinsic reward divided by the running standard
+    /// deviation of the intrinsic rewards so far, so that beta weighs the intrinsic
+    /// advantage the same way on every world (A = A_ext + beta * A_int).
+    #[arg(long)]
+    pub intrinsic_value_head: bool,
+    /// The intrinsic return's discount with --intrinsic-value-head [default: 0.99].
+    #[arg(long, requires = "intrinsic_value_head")]
+    pub gamma_int: Option<f32>,
     /// Sample every action in every mode, as the paper's agent does, instead of only the
     /// actions the mode allows (moves and, holding a tool, apply; at the tool prompt a
     /// held tool; at the direction prompt a direction).

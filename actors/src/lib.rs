@@ -29,7 +29,6 @@ use candle_core::Device;
 use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client, ClientError};
 use fulcrum_learner::checkpoint;
 use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::local::shape_for;
 use fulcrum_learner::net::Net;
 use fulcrum_learner::ppo::Adam;
 use fulcrum_shared::intrinsic::Intrinsic;
@@ -96,7 +95,7 @@ pub fn run_actor(
     id: ActorId,
     stop: &'static AtomicBool,
 ) -> Result<(), ActorError> {
-    let shape = shape_for(world, cfg.hidden);
+    let shape = cfg.shape(world);
     let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
     let (m, t_len) = (cfg.envs_per_actor, cfg.steps_per_chunk);
     let layout = ChunkLayout {
@@ -249,6 +248,9 @@ pub fn run_actor(
     let sub_batch = MAX_BATCH.min(n.div_ceil(MAX_IN_FLIGHT).max(m));
     let (mut acts, mut lps, mut vals) = (vec![0u8; m], vec![0.0f32; m], vec![0.0f32; m]);
     let mut last = vec![0.0f32; m];
+    // Intrinsic values (empty without the intrinsic value head: nothing is computed).
+    let int_len = if cfg.intrinsic_value_head { m } else { 0 };
+    let (mut vals_int, mut last_int) = (vec![0.0f32; int_len], vec![0.0f32; int_len]);
     while !stop.load(Ordering::Relaxed) {
         let v = version;
         let mut rng = ChaCha8Rng::seed_from_u64(chunk_seed(cfg.seed, id.index, v, per_version));
@@ -286,14 +288,18 @@ pub fn run_actor(
                 let f_slot = fr.start + base * f..fr.start + (base + m) * f;
                 buf[g_slot.clone()].copy_from_slice(&cur_g);
                 buf[f_slot.clone()].copy_from_slice(&cur_f);
-                policy.act(
+                policy.act_all(
                     &buf[g_slot],
                     &buf[f_slot],
                     &mut rng,
                     &mut acts,
                     &mut lps,
                     &mut vals,
+                    &mut vals_int,
                 );
+                for (e, v) in vals_int.iter().enumerate() {
+                    put_f32(&mut buf[layout.range(Section::ValueInt)], base + e, *v);
+                }
                 for e in 0..m {
                     let i = base + e;
                     let rec = &mut envs[e];
@@ -348,17 +354,24 @@ pub fn run_actor(
                 }
             }
             // Values after the chunk, and of truncated episodes' final observations.
-            policy.values(&cur_g, &cur_f, &mut last);
+            policy.values_all(&cur_g, &cur_f, &mut last, &mut last_int);
             for (e, v) in last.iter().enumerate() {
                 put_f32(&mut buf[layout.range(Section::LastValue)], e, *v);
+            }
+            for (e, v) in last_int.iter().enumerate() {
+                put_f32(&mut buf[layout.range(Section::LastValueInt)], e, *v);
             }
             if !finals.is_empty() {
                 let fg: Vec<u8> = finals.iter().flat_map(|x| x.1.iter().copied()).collect();
                 let ff: Vec<u8> = finals.iter().flat_map(|x| x.2.iter().copied()).collect();
                 let mut fv = vec![0.0f32; finals.len()];
-                policy.values(&fg, &ff, &mut fv);
+                let mut fvi = vec![0.0f32; if int_len > 0 { finals.len() } else { 0 }];
+                policy.values_all(&fg, &ff, &mut fv, &mut fvi);
                 for ((i, _, _), v) in finals.iter().zip(fv) {
                     put_f32(&mut buf[layout.range(Section::TruncValue)], *i, v);
+                }
+                for ((i, _, _), v) in finals.iter().zip(fvi) {
+                    put_f32(&mut buf[layout.range(Section::TruncValueInt)], *i, v);
                 }
             }
         }

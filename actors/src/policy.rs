@@ -29,6 +29,8 @@ pub struct Policy {
     h2: Vec<f32>,
     logits: Vec<f32>,
     masked: bool,
+    /// The intrinsic value of the last observation evaluated (intrinsic head only).
+    value_int: f32,
 }
 
 impl Policy {
@@ -43,6 +45,7 @@ impl Policy {
             h2: vec![0.0; shape.hidden],
             logits: vec![0.0; shape.actions],
             masked: false,
+            value_int: 0.0,
         }
     }
 
@@ -125,14 +128,38 @@ impl Policy {
                 value += x * w[o.wv + i];
             }
         }
+        if self.shape.int_value {
+            let mut vi = w[o.bvi];
+            for (i, &x) in h2.iter().enumerate() {
+                if x != 0.0 {
+                    vi += x * w[o.wvi + i];
+                }
+            }
+            self.value_int = vi;
+        }
         value
     }
 
     /// Value of each of `n` observations.
     pub fn values(&mut self, glyphs: &[u8], flags: &[u8], out: &mut [f32]) {
+        self.values_all(glyphs, flags, out, &mut []);
+    }
+
+    /// Values of each of `out.len()` observations, and their intrinsic values into
+    /// `out_int` when it is not empty (intrinsic value head).
+    pub fn values_all(
+        &mut self,
+        glyphs: &[u8],
+        flags: &[u8],
+        out: &mut [f32],
+        out_int: &mut [f32],
+    ) {
         let (c, f) = (self.shape.cells, self.shape.flags);
-        for (i, v) in out.iter_mut().enumerate() {
-            *v = self.eval(&glyphs[i * c..(i + 1) * c], &flags[i * f..(i + 1) * f]);
+        for i in 0..out.len() {
+            out[i] = self.eval(&glyphs[i * c..(i + 1) * c], &flags[i * f..(i + 1) * f]);
+            if let Some(v) = out_int.get_mut(i) {
+                *v = self.value_int;
+            }
         }
     }
 
@@ -146,10 +173,28 @@ impl Policy {
         logprobs: &mut [f32],
         values: &mut [f32],
     ) {
+        self.act_all(glyphs, flags, rng, actions, logprobs, values, &mut []);
+    }
+
+    /// [`Policy::act`], and the intrinsic values into `values_int` when it is not empty.
+    #[allow(clippy::too_many_arguments)]
+    pub fn act_all(
+        &mut self,
+        glyphs: &[u8],
+        flags: &[u8],
+        rng: &mut ChaCha8Rng,
+        actions: &mut [u8],
+        logprobs: &mut [f32],
+        values: &mut [f32],
+        values_int: &mut [f32],
+    ) {
         let (c, f) = (self.shape.cells, self.shape.flags);
         for i in 0..actions.len() {
             let fl = &flags[i * f..(i + 1) * f];
             values[i] = self.eval(&glyphs[i * c..(i + 1) * c], fl);
+            if let Some(v) = values_int.get_mut(i) {
+                *v = self.value_int;
+            }
             let mask = if self.masked {
                 fulcrum_shared::mask::action_mask(fl)
             } else {
@@ -202,6 +247,25 @@ mod tests {
     use fulcrum_learner::net::{log_softmax, Net};
 
     /// The plain evaluation equals candle's forward pass of the same weights.
+    /// A network of `shape` with every weight nudged (nonzero biases, so that every
+    /// parameter matters), the same weights in a [`Policy`], and `n` observations.
+    pub(super) fn fixture(shape: NetShape, seed: u64, n: usize) -> (Net, Policy, Vec<u8>, Vec<u8>) {
+        let net = Net::new(shape, seed, &Device::Cpu).unwrap();
+        let mut flat = net.flat().unwrap();
+        for (i, x) in flat.iter_mut().enumerate() {
+            *x += ((i * 7919) % 13) as f32 * 0.01 - 0.06;
+        }
+        net.set_flat(&flat).unwrap();
+        let mut p = Policy::new(shape);
+        assert!(p.set(&flat));
+        let c = shape.cells;
+        let glyphs: Vec<u8> = (0..n * c)
+            .map(|i| ((i * 5 + i / c) % shape.glyphs) as u8)
+            .collect();
+        let flags: Vec<u8> = (0..n * shape.flags).map(|i| (i % 3 == 0) as u8).collect();
+        (net, p, glyphs, flags)
+    }
+
     #[test]
     fn equals_the_candle_network() {
         let shape = NetShape {
@@ -210,19 +274,10 @@ mod tests {
             flags: 5,
             hidden: 16,
             actions: 7,
+            int_value: false,
         };
-        let net = Net::new(shape, 3, &Device::Cpu).unwrap();
-        // Nonzero biases, so that every parameter matters.
-        let mut flat = net.flat().unwrap();
-        for (i, x) in flat.iter_mut().enumerate() {
-            *x += ((i * 7919) % 13) as f32 * 0.01 - 0.06;
-        }
-        net.set_flat(&flat).unwrap();
-        let mut p = Policy::new(shape);
-        assert!(p.set(&flat));
         let n = 9;
-        let glyphs: Vec<u8> = (0..n * 12).map(|i| ((i * 5 + i / 12) % 11) as u8).collect();
-        let flags: Vec<u8> = (0..n * 5).map(|i| (i % 3 == 0) as u8).collect();
+        let (net, mut p, glyphs, flags) = fixture(shape, 3, n);
         let (logits, value) = net.forward(&net.batch(&glyphs, &flags).unwrap()).unwrap();
         let lp = log_softmax(&logits).unwrap().to_vec2::<f32>().unwrap();
         let v: Vec<f32> = value.to_vec1().unwrap();
@@ -266,6 +321,7 @@ mod masked_tests {
             flags: 6,
             hidden: 16,
             actions: 7,
+            int_value: false,
         };
         let net = Net::new(shape, 9, &Device::Cpu).unwrap();
         let mut p = Policy::new(shape).with_action_mask(true);
@@ -299,5 +355,45 @@ mod masked_tests {
         }
         // Every action is allowed somewhere and drawn.
         assert!(seen.iter().all(|&c| c > 0), "{seen:?}");
+    }
+}
+
+#[cfg(test)]
+mod int_head_tests {
+    use super::tests::fixture;
+    use super::*;
+    use rand::SeedableRng;
+
+    /// With the intrinsic value head the plain evaluation gives candle's second head too,
+    /// and the extrinsic value and the sampled actions are those of the same weights.
+    #[test]
+    fn intrinsic_values_equal_the_candle_head() {
+        let shape = NetShape {
+            cells: 12,
+            glyphs: 11,
+            flags: 6,
+            hidden: 16,
+            actions: 7,
+            int_value: true,
+        };
+        let n = 9;
+        let (net, mut p, glyphs, flags) = fixture(shape, 4, n);
+        let (_, value, vi) = net
+            .forward_all(&net.batch(&glyphs, &flags).unwrap())
+            .unwrap();
+        let (value, vi): (Vec<f32>, Vec<f32>) =
+            (value.to_vec1().unwrap(), vi.unwrap().to_vec1().unwrap());
+        let (mut v, mut w) = (vec![0.0; n], vec![0.0; n]);
+        p.values_all(&glyphs, &flags, &mut v, &mut w);
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let (mut a, mut l) = (vec![0u8; n], vec![0.0; n]);
+        let (mut v2, mut w2) = (vec![0.0; n], vec![0.0; n]);
+        p.act_all(&glyphs, &flags, &mut rng, &mut a, &mut l, &mut v2, &mut w2);
+        for i in 0..n {
+            assert!((v[i] - value[i]).abs() < 1e-4 && (w[i] - vi[i]).abs() < 1e-4);
+            assert_eq!((v[i], w[i]), (v2[i], w2[i]));
+        }
+        // The two heads differ (not one value written twice).
+        assert!(v.iter().zip(&w).any(|(a, b)| (a - b).abs() > 1e-3));
     }
 }

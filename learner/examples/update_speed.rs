@@ -73,6 +73,7 @@ fn main() {
         advantages: &adv,
         returns: &ret,
         action_mask: false,
+        int: None,
     };
     let prep =
         fulcrum_learner::fused::Data::new(shape, &glyphs, &flags, &acts, &lp, &vals, &adv, &ret)
@@ -250,6 +251,7 @@ fn update_candle(
                 returns: &ret,
                 old_values: &old_v,
                 logit_bias: None,
+                int: None,
             };
             let t0 = Instant::now();
             let (l, s) = loss(net, &batch, cfg)?;

@@ -76,12 +76,25 @@ pub struct RunConfig {
     /// existed reads as `false`, the way those runs were trained.
     #[serde(default)]
     pub action_mask: bool,
+    /// Two value heads (RND's arrangement): the task reward and the intrinsic reward get
+    /// their own value estimates and GAE (the intrinsic one with `gamma_int`), the
+    /// intrinsic reward divided by the running standard deviation of the intrinsic
+    /// rewards so far; the policy's advantage is `A_ext + beta * A_int`.
+    #[serde(default)]
+    pub intrinsic_value_head: bool,
+    /// The intrinsic return's discount (two value heads only).
+    #[serde(default = "default_gamma_int")]
+    pub gamma_int: f32,
     /// PPO hyperparameters (the `[ppo]` table).
     pub ppo: PpoConfig,
 }
 
 fn default_intrinsic() -> String {
     "additive".into()
+}
+
+fn default_gamma_int() -> f32 {
+    0.99
 }
 
 fn default_stall_timeout() -> f64 {
@@ -93,6 +106,14 @@ fn default_horizon_mode() -> String {
 }
 
 impl RunConfig {
+    /// The network's shape for this run on `world`.
+    pub fn shape(&self, world: &fulcrum_shared::World) -> crate::net::NetShape {
+        crate::net::NetShape {
+            int_value: self.intrinsic_value_head,
+            ..crate::local::shape_for(world, self.hidden)
+        }
+    }
+
     /// The intrinsic reward form (`none` without a service, whatever the field says).
     pub fn form(&self) -> fulcrum_shared::intrinsic::Intrinsic {
         use fulcrum_shared::intrinsic::Intrinsic;
@@ -179,6 +200,14 @@ impl RunConfig {
             }
         }
         let form: fulcrum_shared::intrinsic::Intrinsic = self.intrinsic.parse()?;
+        if self.intrinsic_value_head && !form.uses_service() {
+            return Err(
+                "--intrinsic-value-head needs an intrinsic reward (not --no-empowerment)".into(),
+            );
+        }
+        if !(self.gamma_int > 0.0 && self.gamma_int <= 1.0) {
+            return Err(format!("--gamma-int {} must be in (0, 1]", self.gamma_int));
+        }
         if form.uses_service() != self.empowerment {
             return Err(format!(
                 "--intrinsic {form} {} an empowerment service",
@@ -268,6 +297,8 @@ mod tests {
             stall_timeout_s: 10.0,
             checkpoint_every: 10,
             action_mask: true,
+            intrinsic_value_head: false,
+            gamma_int: 0.99,
             ppo: PpoConfig::default(),
         }
     }

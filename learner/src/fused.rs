@@ -68,6 +68,10 @@ pub struct Offsets {
     pub wv: usize,
     /// `policy.v.b` (1).
     pub bv: usize,
+    /// `policy.v_int.w` (H, 1), with the intrinsic value head (else `len`).
+    pub wvi: usize,
+    /// `policy.v_int.b` (1), with the intrinsic value head (else `len`).
+    pub bvi: usize,
     /// Total.
     pub len: usize,
 }
@@ -85,6 +89,11 @@ impl Offsets {
         let bp = wp + h * s.actions;
         let wv = bp + s.actions;
         let bv = wv + h;
+        let (wvi, bvi, len) = if s.int_value {
+            (bv + 1, bv + 1 + h, bv + 2 + h)
+        } else {
+            (bv + 1, bv + 1, bv + 1)
+        };
         Offsets {
             embed,
             wf,
@@ -95,7 +104,9 @@ impl Offsets {
             bp,
             wv,
             bv,
-            len: bv + 1,
+            wvi,
+            bvi,
+            len,
         }
     }
 }
@@ -125,6 +136,8 @@ pub struct Data<'a> {
     /// Per sample, the allowed actions ([`fulcrum_shared::mask::action_mask`]); `None`
     /// without masking.
     masks: Option<Vec<u32>>,
+    /// V_int old and the intrinsic returns, with the intrinsic value head.
+    int: Option<(&'a [f32], &'a [f32])>,
 }
 
 impl<'a> Data<'a> {
@@ -235,7 +248,23 @@ impl<'a> Data<'a> {
             advantages,
             returns,
             masks: None,
+            int: None,
         })
+    }
+
+    /// The intrinsic value head's old values and returns (one per sample), trained with
+    /// the same clipped value loss as the extrinsic head.
+    pub fn with_intrinsic(mut self, values: &'a [f32], returns: &'a [f32]) -> Result<Self> {
+        let n = self.actions.len();
+        if values.len() != n || returns.len() != n {
+            bail!(
+                "update data: {n} actions but {} intrinsic values and {} intrinsic returns",
+                values.len(),
+                returns.len()
+            );
+        }
+        self.int = Some((values, returns));
+        Ok(self)
     }
 
     /// Mask each sample's logits by the actions its flags allow (per-mode action
@@ -571,10 +600,10 @@ impl Learner {
             ranges: Vec::new(),
             simd: simd(),
             w2t: vec![0.0; h * h],
-            ht: vec![0.0; (a + 1) * h],
-            hb: vec![0.0; a + 1],
-            dht: vec![0.0; (a + 1) * h],
-            dhb: vec![0.0; a + 1],
+            ht: vec![0.0; (a + shape.heads()) * h],
+            hb: vec![0.0; a + shape.heads()],
+            dht: vec![0.0; (a + shape.heads()) * h],
+            dhb: vec![0.0; a + shape.heads()],
         };
         l.rebuild_ranges();
         l.refresh();
@@ -645,9 +674,15 @@ impl Learner {
                 self.ht[k * h + j] = self.w[o.wp + j * a + k];
             }
             self.ht[a * h + j] = self.w[o.wv + j];
+            if self.shape.int_value {
+                self.ht[(a + 1) * h + j] = self.w[o.wvi + j];
+            }
         }
         self.hb[..a].copy_from_slice(&self.w[o.bp..o.bp + a]);
         self.hb[a] = self.w[o.bv];
+        if self.shape.int_value {
+            self.hb[a + 1] = self.w[o.bvi];
+        }
     }
 
     /// Loss diagnostics and the gradient (into `self.g`) of the minibatch `idx` of `d`.
@@ -871,11 +906,41 @@ fn clamp_grad(x: f32, lo: f32, hi: f32) -> (f32, f32) {
     (z, dy * dz)
 }
 
+/// One sample's value loss term (already divided as in the loss's mean: the L_v part,
+/// before `vf_coef`) and its gradient with respect to the value (with `vf_coef` and
+/// `inv_n`): CleanRL's `0.5 * max((v - R)^2, (v_old + clip(v - v_old) - R)^2)`, or
+/// RLlib's `min((v - R)^2, vf_loss_clip)`.
+#[inline(always)]
+fn value_loss(value: f32, old_v: f32, ret: f32, cfg: &PpoConfig, inv_n: f32) -> (f32, f32) {
+    let vu = (value - ret) * (value - ret);
+    if cfg.vf_loss_clip > 0.0 {
+        // RLlib: min((v - R)^2, c); `minimum` splits the gradient on a tie.
+        let (_, vu_max) = max_weights(cfg.vf_loss_clip, vu);
+        let w = 1.0 - vu_max;
+        (
+            vu.min(cfg.vf_loss_clip),
+            cfg.vf_coef * inv_n * w * 2.0 * (value - ret),
+        )
+    } else {
+        let (dc, ddc) = clamp_grad(value - old_v, -cfg.clip, cfg.clip);
+        let vc = old_v + dc;
+        let va = (vc - ret) * (vc - ret);
+        let (wa, wb) = max_weights(va, vu);
+        let coef = cfg.vf_coef * 0.5 * inv_n;
+        (
+            0.5 * va.max(vu),
+            coef * (wa * 2.0 * (vc - ret) * ddc + wb * 2.0 * (value - ret)),
+        )
+    }
+}
+
 #[inline(always)]
 fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -> Stats {
     let s = l.shape;
     let o = l.off;
     let (c, f, h, na) = (s.cells, s.flags, s.hidden, s.actions);
+    // Heads: the logits, the value and (optionally) the intrinsic value.
+    let nh = na + s.heads();
     let n = idx.len();
     l.dht.fill(0.0);
     l.dhb.fill(0.0);
@@ -925,11 +990,11 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
     let mut h2 = vec![0.0f32; h];
     let mut dz2 = vec![0.0f32; h];
     let mut dz1 = vec![0.0f32; h];
-    let mut out = vec![0.0f32; na + 1];
-    let mut dout = vec![0.0f32; na + 1];
+    let mut out = vec![0.0f32; nh];
+    let mut dout = vec![0.0f32; nh];
     let mut logp = vec![0.0f32; na];
     let mut p = vec![0.0f32; na];
-    let mut terms = vec![(0u32, 0.0f32); h.max(f).max(na + 1)];
+    let mut terms = vec![(0u32, 0.0f32); h.max(f).max(nh)];
     let mut h1_terms = vec![(0u32, 0.0f32); h];
     let (mut pg_sum, mut v_sum, mut ent_sum, mut kl_sum, mut clipped) =
         (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0usize);
@@ -1027,23 +1092,13 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
         for (dy, &pj) in dout[..na].iter_mut().zip(&p) {
             *dy -= pj * gsum;
         }
-        let value = out[na];
-        let (ret, old_v) = (d.returns[i], d.values[i]);
-        let vu = (value - ret) * (value - ret);
-        if cfg.vf_loss_clip > 0.0 {
-            // RLlib: min((v - R)^2, c); `minimum` splits the gradient on a tie.
-            let (_, vu_max) = max_weights(cfg.vf_loss_clip, vu);
-            let w = 1.0 - vu_max;
-            dout[na] = cfg.vf_coef * inv_n * w * 2.0 * (value - ret);
-            v_sum += vu.min(cfg.vf_loss_clip);
-        } else {
-            let (dc, ddc) = clamp_grad(value - old_v, -cfg.clip, cfg.clip);
-            let vc = old_v + dc;
-            let va = (vc - ret) * (vc - ret);
-            let (wa, wb) = max_weights(va, vu);
-            let coef = cfg.vf_coef * 0.5 * inv_n;
-            dout[na] = coef * (wa * 2.0 * (vc - ret) * ddc + wb * 2.0 * (value - ret));
-            v_sum += 0.5 * va.max(vu);
+        let (l, g) = value_loss(out[na], d.values[i], d.returns[i], cfg, inv_n);
+        dout[na] = g;
+        v_sum += l;
+        if let Some((vals, rets)) = d.int {
+            let (l, g) = value_loss(out[na + 1], vals[i], rets[i], cfg, inv_n);
+            dout[na + 1] = g;
+            v_sum += l;
         }
 
         pg_sum += pg1.max(pg2);
@@ -1060,7 +1115,7 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
         for (k, (t, &x)) in terms.iter_mut().zip(&dout).enumerate() {
             *t = (k as u32, x);
         }
-        combine_rows(&mut dz2, ht, &terms[..na + 1]);
+        combine_rows(&mut dz2, ht, &terms[..nh]);
         // Layer 2: dz2, dW2 += h1^T dz2, db2 += dz2, dh1 = dz2 @ W2^T.
         for (y, &z) in dz2.iter_mut().zip(&z2) {
             if z < 0.0 {
@@ -1111,9 +1166,15 @@ fn gradient_generic(l: &mut Learner, d: &Data, idx: &[usize], cfg: &PpoConfig) -
             l.g[o.wp + j * na + k] = l.dht[k * h + j];
         }
         l.g[o.wv + j] = l.dht[na * h + j];
+        if s.int_value {
+            l.g[o.wvi + j] = l.dht[(na + 1) * h + j];
+        }
     }
     l.g[o.bp..o.bp + na].copy_from_slice(&l.dhb[..na]);
     l.g[o.bv] = l.dhb[na];
+    if s.int_value {
+        l.g[o.bvi] = l.dhb[na + 1];
+    }
 
     Stats {
         policy_loss: pg_sum * inv_n,
@@ -1201,6 +1262,7 @@ mod tests {
                 flags: 3,
                 hidden: 5,
                 actions: 4,
+                int_value: false,
             },
             NetShape {
                 cells: 20,
@@ -1208,6 +1270,7 @@ mod tests {
                 flags: 4,
                 hidden: 40,
                 actions: 6,
+                int_value: false,
             },
             NetShape {
                 cells: 30,
@@ -1215,6 +1278,7 @@ mod tests {
                 flags: 6,
                 hidden: 64,
                 actions: 7,
+                int_value: false,
             },
         ]
     }
@@ -1274,9 +1338,22 @@ mod tests {
             .collect();
     }
 
+    /// Two value heads: the intrinsic head's clipped value loss against its own returns
+    /// adds to the extrinsic one's; every gradient (the new head's included) agrees.
+    #[test]
+    fn intrinsic_value_head_gradient_matches_candle_autograd() {
+        check_gradient_heads(false, PpoConfig::default(), true);
+        check_gradient_heads(true, crate::ppo::Preset::Rllib.ppo(), true);
+    }
+
     fn check_gradient(masked: bool, cfg: PpoConfig) {
+        check_gradient_heads(masked, cfg, false);
+    }
+
+    fn check_gradient_heads(masked: bool, cfg: PpoConfig, int_value: bool) {
         let dev = Device::Cpu;
         for (k, shape) in shapes().into_iter().enumerate() {
+            let shape = NetShape { int_value, ..shape };
             // The first shape is no world's (flags != 2n + 2): its mask allows all.
             if masked && k == 0 {
                 continue;
@@ -1288,6 +1365,24 @@ mod tests {
                 mask_rollout(&net, &mut r, 300 + k as u64);
             }
             let bias = crate::net::mask_bias(&r.flags, shape.flags, shape.actions, &dev).unwrap();
+            // The intrinsic head's old values and returns, on both sides of the clip.
+            let mut irng = ChaCha8Rng::seed_from_u64(500 + k as u64);
+            let (vals_int, rets_int): (Vec<f32>, Vec<f32>) = if int_value {
+                let obs = net.batch(&r.glyphs, &r.flags).unwrap();
+                let vi: Vec<f32> = net.forward_all(&obs).unwrap().2.unwrap().to_vec1().unwrap();
+                (
+                    vi.iter()
+                        .map(|x| x + irng.random_range(-0.5f32..0.5))
+                        .collect(),
+                    (0..n).map(|_| irng.random_range(-1.0f32..1.0)).collect(),
+                )
+            } else {
+                (Vec::new(), Vec::new())
+            };
+            let (ovi, rti) = (
+                Tensor::from_slice(&vals_int, vals_int.len(), &dev).unwrap(),
+                Tensor::from_slice(&rets_int, rets_int.len(), &dev).unwrap(),
+            );
             // Candle: loss and unclipped gradient.
             let t = |v: &[f32]| Tensor::from_slice(v, v.len(), &dev).unwrap();
             let obs = net.batch(&r.glyphs, &r.flags).unwrap();
@@ -1306,6 +1401,7 @@ mod tests {
                 returns: &ret,
                 old_values: &ov,
                 logit_bias: masked.then_some(&bias),
+                int: int_value.then_some((&rti, &ovi)),
             };
             let (l, want) = loss(&net, &mb, &cfg).unwrap();
             let (grads, want_norm) = clipped_grads(&net, &l, f32::MAX).unwrap();
@@ -1328,6 +1424,11 @@ mod tests {
             .unwrap()
             .with_action_mask(masked, &r.flags, shape.flags)
             .unwrap();
+            let data = if int_value {
+                data.with_intrinsic(&vals_int, &rets_int).unwrap()
+            } else {
+                data
+            };
             assert!(data.differing_cells() > 0);
             assert!(data.dense_samples() > 0 && data.dense_samples() < n);
             let mut fl = Learner::load(&net, &crate::ppo::Adam::new(&net).unwrap()).unwrap();
@@ -1394,6 +1495,7 @@ mod tests {
                     advantages: &r.advantages,
                     returns: &r.returns,
                     action_mask: false,
+                    int: None,
                 };
                 crate::local::update(&a, &mut adam_a, &cfg, 1e-3, &mut rng_a, &d).unwrap();
                 reference_update(&b, &mut adam_b, &cfg, 1e-3, &mut rng_b, &d);
@@ -1458,6 +1560,7 @@ mod tests {
                     returns: &ret,
                     old_values: &ov,
                     logit_bias: None,
+                    int: None,
                 };
                 let (l, _) = loss(net, &batch, cfg).unwrap();
                 let (grads, _) = clipped_grads(net, &l, cfg.max_grad_norm).unwrap();

@@ -82,7 +82,8 @@ impl UpdateLog {
     }
 }
 
-/// The network's shape for a world.
+/// The network's shape for a world (one value head; [`crate::config::RunConfig::shape`]
+/// adds the intrinsic one when the run has it).
 pub fn shape_for(world: &World, hidden: usize) -> NetShape {
     let spec = world.obs_spec();
     NetShape {
@@ -91,6 +92,7 @@ pub fn shape_for(world: &World, hidden: usize) -> NetShape {
         flags: spec.flags,
         hidden,
         actions: world.num_actions(),
+        int_value: false,
     }
 }
 
@@ -227,6 +229,7 @@ pub fn train(
                 advantages: &adv,
                 returns: &ret,
                 action_mask: cfg.action_mask,
+                int: None,
             },
         )?;
         kl_coef = cfg.ppo.adapt_kl(kl_coef, log.stats.approx_kl);
@@ -261,6 +264,8 @@ pub struct UpdateData<'a> {
     pub returns: &'a [f32],
     /// Whether the policy's logits are masked per mode ([`fulcrum_shared::mask`]).
     pub action_mask: bool,
+    /// With the intrinsic value head: V_int old and the intrinsic returns.
+    pub int: Option<(&'a [f32], &'a [f32])>,
 }
 
 /// PPO epochs over shuffled minibatches; returns the mean diagnostics.
@@ -306,6 +311,10 @@ pub fn update(
         net.shape, d.glyphs, d.flags, d.actions, d.logprobs, d.values, advantages, d.returns,
     )?
     .with_action_mask(d.action_mask, d.flags, net.shape.flags)?;
+    let data = match d.int {
+        Some((v, r)) => data.with_intrinsic(v, r)?,
+        None => data,
+    };
     let mut fl = Learner::load(net, adam)?;
     let mb = n / cfg.minibatches.max(1);
     let mut idx: Vec<usize> = (0..n).collect();

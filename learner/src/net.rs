@@ -8,6 +8,7 @@
 //! h2     = relu( h1 @ W2 + b2 )                                      W2: (H, H)
 //! logits = h2 @ Wp + bp                                              Wp: (H, |A|)
 //! value  = h2 @ Wv + bv                                              Wv: (H, 1)
+//! v_int  = h2 @ Wvi + bvi     (only with the intrinsic value head)   Wvi: (H, 1)
 //! ```
 //!
 //! The first layer sums one embedding row per (cell, glyph): exactly a linear layer on
@@ -33,6 +34,16 @@ pub struct NetShape {
     pub hidden: usize,
     /// Actions.
     pub actions: usize,
+    /// A second value head for the intrinsic return (`train --intrinsic-value-head`):
+    /// `value_int = h2 @ Wvi + bvi`, parameters `policy.v_int.w` (H, 1), `policy.v_int.b`.
+    pub int_value: bool,
+}
+
+impl NetShape {
+    /// Value heads: 1, or 2 with the intrinsic one.
+    pub fn heads(&self) -> usize {
+        1 + self.int_value as usize
+    }
 }
 
 /// The network's parameters, in a fixed order.
@@ -77,6 +88,7 @@ impl Net {
             flags,
             hidden,
             actions,
+            int_value,
         } = shape;
         let fan1 = (cells + flags) as f32;
         let mut params = Vec::new();
@@ -116,6 +128,14 @@ impl Net {
             &[hidden, 1],
         )?;
         add("policy.v.b", vec![0.0; 1], &[1])?;
+        if int_value {
+            add(
+                "policy.v_int.w",
+                normal(&mut rng, hidden, 1.0 / (hidden as f32).sqrt()),
+                &[hidden, 1],
+            )?;
+            add("policy.v_int.b", vec![0.0; 1], &[1])?;
+        }
         Ok(Net {
             shape,
             params,
@@ -151,6 +171,12 @@ impl Net {
 
     /// Logits (B, |A|) and values (B,).
     pub fn forward(&self, obs: &ObsBatch) -> Result<(Tensor, Tensor)> {
+        let (logits, value, _) = self.forward_all(obs)?;
+        Ok((logits, value))
+    }
+
+    /// Logits (B, |A|), values (B,) and, with the intrinsic head, intrinsic values (B,).
+    pub fn forward_all(&self, obs: &ObsBatch) -> Result<(Tensor, Tensor, Option<Tensor>)> {
         let NetShape { cells, hidden, .. } = self.shape;
         let emb = self
             .p(0)
@@ -163,7 +189,16 @@ impl Net {
         let h2 = h1.matmul(self.p(3))?.broadcast_add(self.p(4))?.relu()?;
         let logits = h2.matmul(self.p(5))?.broadcast_add(self.p(6))?;
         let value = h2.matmul(self.p(7))?.broadcast_add(self.p(8))?.squeeze(1)?;
-        Ok((logits, value))
+        let value_int = if self.shape.int_value {
+            Some(
+                h2.matmul(self.p(9))?
+                    .broadcast_add(self.p(10))?
+                    .squeeze(1)?,
+            )
+        } else {
+            None
+        };
+        Ok((logits, value, value_int))
     }
 
     /// All parameters as one flat f32 buffer (the weights actors receive).

@@ -11,6 +11,9 @@
 //! L      = L_pi - c_ent * mean(entropy) + c_v * L_v
 //! ```
 //!
+//! With the intrinsic value head, `L_v` is the sum of the two heads' value losses (each
+//! against its own returns and old values).
+//!
 //! With the RLlib preset ([`Preset::Rllib`]) three terms change: advantages are
 //! standardised once over the batch, `L_v = mean( min((v - R)^2, vf_loss_clip) )`, and a
 //! KL penalty `c_kl * mean((ratio - 1) - log ratio)` is added, c_kl adapting after each
@@ -287,6 +290,8 @@ pub struct Minibatch<'a> {
     /// Added to the logits before the softmax, (B, |A|): 0 where an action is allowed,
     /// [`crate::net::MASKED_LOGIT`] where the action mask removes it; `None` unmasked.
     pub logit_bias: Option<&'a Tensor>,
+    /// With the intrinsic value head: its returns and old values, (B,) each.
+    pub int: Option<(&'a Tensor, &'a Tensor)>,
 }
 
 /// Diagnostics of one minibatch step.
@@ -306,7 +311,7 @@ pub struct Stats {
 
 /// The loss of a minibatch and its diagnostics.
 pub fn loss(net: &Net, mb: &Minibatch, cfg: &PpoConfig) -> Result<(Tensor, Stats)> {
-    let (logits, value) = net.forward(mb.obs)?;
+    let (logits, value, value_int) = net.forward_all(mb.obs)?;
     let logits = match mb.logit_bias {
         Some(b) => (logits + b)?,
         None => logits,
@@ -331,17 +336,23 @@ pub fn loss(net: &Net, mb: &Minibatch, cfg: &PpoConfig) -> Result<(Tensor, Stats
     let pg1 = (adv.neg()? * &ratio)?;
     let pg2 = (adv.neg()? * ratio.clamp(1.0 - cfg.clip, 1.0 + cfg.clip)?)?;
     let pg = pg1.maximum(&pg2)?.mean_all()?;
-    let v_unclipped = (&value - mb.returns)?.sqr()?;
-    let v_loss = if cfg.vf_loss_clip > 0.0 {
-        v_unclipped.minimum(cfg.vf_loss_clip as f64)?.mean_all()?
-    } else {
-        let v_clipped = (mb.old_values + (&value - mb.old_values)?.clamp(-cfg.clip, cfg.clip)?)?;
-        ((v_clipped - mb.returns)?
-            .sqr()?
-            .maximum(&v_unclipped)?
-            .mean_all()?
-            * 0.5)?
+    let value_loss = |value: &Tensor, returns: &Tensor, old_values: &Tensor| -> Result<Tensor> {
+        let v_unclipped = (value - returns)?.sqr()?;
+        if cfg.vf_loss_clip > 0.0 {
+            v_unclipped.minimum(cfg.vf_loss_clip as f64)?.mean_all()
+        } else {
+            let v_clipped = (old_values + (value - old_values)?.clamp(-cfg.clip, cfg.clip)?)?;
+            (v_clipped - returns)?
+                .sqr()?
+                .maximum(&v_unclipped)?
+                .mean_all()?
+                * 0.5
+        }
     };
+    let mut v_loss = value_loss(&value, mb.returns, mb.old_values)?;
+    if let (Some(vi), Some((ri, oi))) = (&value_int, mb.int) {
+        v_loss = (v_loss + value_loss(vi, ri, oi)?)?;
+    }
     let ent_mean = ent.mean_all()?;
     let mut total =
         ((&pg - (&ent_mean * cfg.ent_coef as f64)?)? + (&v_loss * cfg.vf_coef as f64)?)?;

@@ -34,7 +34,7 @@ use rand_chacha::ChaCha8Rng;
 use crate::checkpoint::{self, Extra};
 use crate::config::RunConfig;
 use crate::gae::{gae, Rollout};
-use crate::local::{shape_for, update, UpdateData};
+use crate::local::{update, UpdateData};
 use crate::net::Net;
 use crate::ppo::{Adam, PpoConfig, Stats};
 
@@ -116,6 +116,15 @@ pub struct MetricsRow {
 }
 
 impl MetricsRow {
+    /// The row as a point of a learning curve ([`crate::stats`]).
+    pub fn point(&self) -> crate::stats::Point {
+        crate::stats::Point {
+            steps: self.env_steps as f64,
+            episodes: self.episodes as f64,
+            success: self.success_rate,
+            ret: self.extrinsic_return,
+        }
+    }
     /// The CSV line (no newline).
     pub fn csv(&self) -> String {
         let f = |x: f64| {
@@ -288,6 +297,8 @@ struct Counters {
     lost: u64,
     /// The KL penalty's coefficient now (it adapts after each update).
     kl_coef: f32,
+    /// The intrinsic rewards' running scale (intrinsic value head).
+    int_std: crate::stats::RunningStd,
 }
 
 fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
@@ -305,7 +316,7 @@ pub fn run_learner(
     mut progress: impl FnMut(&MetricsRow, u64),
 ) -> Result<LearnerExit, LearnerError> {
     let dev = Device::Cpu;
-    let shape = shape_for(world, cfg.hidden);
+    let shape = cfg.shape(world);
     let net = Net::new(shape, cfg.seed, &dev)?;
     let mut adam = Adam::new(&net)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);
@@ -339,6 +350,12 @@ pub fn run_learner(
         if let Some(&k) = extra.floats.get("kl_coef") {
             ctr.kl_coef = k as f32;
         }
+        let f = |k: &str| extra.floats.get(k).copied().unwrap_or(0.0);
+        ctr.int_std = crate::stats::RunningStd {
+            count: f("int_std_count"),
+            mean: f("int_std_mean"),
+            m2: f("int_std_m2"),
+        };
         if let Some(r) = extra
             .blobs
             .get("learner_rng")
@@ -563,6 +580,9 @@ pub fn run_learner(
         let mut d_val = vec![0.0f32; total];
         let mut d_adv = Vec::with_capacity(total);
         let mut d_ret = Vec::with_capacity(total);
+        let two_heads = cfg.intrinsic_value_head;
+        let mut d_val_int = vec![0.0f32; if two_heads { total } else { 0 }];
+        let mut d_ret_int = Vec::new();
         let mut row = MetricsRow::default();
         let (mut ext_sum, mut int_ret_sum, mut len_sum, mut int_sum, mut lag_sum) =
             (0.0, 0.0, 0.0, 0.0, 0.0);
@@ -589,7 +609,6 @@ pub fn run_learner(
             read_f32s(&p[layout.range(Section::TruncValue)], &mut tv);
             read_f32s(&p[layout.range(Section::LastValue)], &mut lv);
             let beta = cfg.beta as f32;
-            let rewards: Vec<f32> = ext.iter().zip(&int).map(|(r, e)| r + beta * e).collect();
             let term: Vec<bool> = p[layout.range(Section::Terminated)]
                 .iter()
                 .map(|&b| b == 1)
@@ -598,21 +617,47 @@ pub fn run_learner(
                 .iter()
                 .map(|&b| b == 1)
                 .collect();
-            let (adv, ret) = gae(
-                &Rollout {
-                    envs: m,
-                    rewards: &rewards,
-                    values: &d_val[k * n..(k + 1) * n],
-                    terminated: &term,
-                    truncated: &trunc,
-                    truncated_values: &tv,
-                    last_values: &lv,
-                },
-                ppo.gamma,
-                ppo.gae_lambda,
-            );
-            d_adv.extend_from_slice(&adv);
-            d_ret.extend_from_slice(&ret);
+            let gae_of = |rewards: &[f32], values: &[f32], tv: &[f32], lv: &[f32], gamma: f32| {
+                gae(
+                    &Rollout {
+                        envs: m,
+                        rewards,
+                        values,
+                        terminated: &term,
+                        truncated: &trunc,
+                        truncated_values: tv,
+                        last_values: lv,
+                    },
+                    gamma,
+                    ppo.gae_lambda,
+                )
+            };
+            let values = &d_val[k * n..(k + 1) * n];
+            if two_heads {
+                // Two streams: the task reward with V, the intrinsic reward (divided by
+                // its running std) with V_int and gamma_int; A = A_ext + beta * A_int.
+                ctr.int_std.update(&int);
+                let scale = (ctr.int_std.std() + 1e-8) as f32;
+                let int_n: Vec<f32> = int.iter().map(|x| x / scale).collect();
+                let (mut tvi, mut lvi) = (vec![0.0f32; n], vec![0.0f32; m]);
+                read_f32s(
+                    &p[layout.range(Section::ValueInt)],
+                    &mut d_val_int[k * n..(k + 1) * n],
+                );
+                read_f32s(&p[layout.range(Section::TruncValueInt)], &mut tvi);
+                read_f32s(&p[layout.range(Section::LastValueInt)], &mut lvi);
+                let (adv_e, ret_e) = gae_of(&ext, values, &tv, &lv, ppo.gamma);
+                let values_int = &d_val_int[k * n..(k + 1) * n];
+                let (adv_i, ret_i) = gae_of(&int_n, values_int, &tvi, &lvi, cfg.gamma_int);
+                d_adv.extend(adv_e.iter().zip(&adv_i).map(|(e, i)| e + beta * i));
+                d_ret.extend_from_slice(&ret_e);
+                d_ret_int.extend_from_slice(&ret_i);
+            } else {
+                let rewards: Vec<f32> = ext.iter().zip(&int).map(|(r, e)| r + beta * e).collect();
+                let (adv, ret) = gae_of(&rewards, values, &tv, &lv, ppo.gamma);
+                d_adv.extend_from_slice(&adv);
+                d_ret.extend_from_slice(&ret);
+            }
             episodes += c.h.episodes as u64;
             successes += c.h.successes as u64;
             pickups += c.h.pickups as u64;
@@ -652,6 +697,7 @@ pub fn run_learner(
                 advantages: &d_adv,
                 returns: &d_ret,
                 action_mask: cfg.action_mask,
+                int: two_heads.then_some((&d_val_int[..], &d_ret_int[..])),
             },
         )?;
         ctr.kl_coef = ppo.adapt_kl(ctr.kl_coef, row.stats.approx_kl);
@@ -781,6 +827,11 @@ fn save(
     extra.counters.insert("lost_chunks".into(), ctr.lost);
     extra.floats.insert("wall_s".into(), ctr.wall_s);
     extra.floats.insert("kl_coef".into(), ctr.kl_coef as f64);
+    extra
+        .floats
+        .insert("int_std_count".into(), ctr.int_std.count);
+    extra.floats.insert("int_std_mean".into(), ctr.int_std.mean);
+    extra.floats.insert("int_std_m2".into(), ctr.int_std.m2);
     extra
         .meta
         .insert("action_mask".into(), cfg.action_mask.to_string());

@@ -44,6 +44,7 @@ fn shape(cells: usize) -> NetShape {
         flags: 3,
         hidden: 8,
         actions: 4,
+        int_value: false,
     }
 }
 

@@ -11,6 +11,7 @@ fn shape() -> NetShape {
         flags: 3,
         hidden: 5,
         actions: 4,
+        int_value: false,
     }
 }
 
@@ -168,6 +169,7 @@ fn clipped_surrogate_and_value_loss() {
         returns: &rett,
         old_values: &ovt,
         logit_bias: None,
+        int: None,
     };
     let (total, stats) = loss(&net, &mb, &cfg).unwrap();
     // Reference, scalar by scalar (CleanRL's formulas).

@@ -37,6 +37,7 @@ const SHAPE: NetShape = NetShape {
     flags: 6,
     hidden: 5,
     actions: 7,
+    int_value: false,
 };
 const N: usize = 12;
 const LR: f64 = 1e-2;
@@ -302,6 +303,7 @@ fn candle_case(masked: bool) {
             returns: &ret,
             old_values: &ov,
             logit_bias: masked.then_some(&bias),
+            int: None,
         };
         let (l, stats) = loss(&net, &mb, &cfg).unwrap();
         let d_stats = check("candle stats", &stats_vec(&stats), want.stats);

@@ -182,3 +182,19 @@ fn solved_by_is_kaplan_meier() {
     }
     assert!(solved_by(&[], &[1.0, 2.0]).iter().all(|x| x.is_nan()));
 }
+
+/// The running scale of the intrinsic rewards merges batches into the same moments as
+/// one pass over all values. By hand: [1, 2, 3, 4, 10] has mean 4 and squared
+/// deviations 9 + 4 + 1 + 0 + 36 = 50, so the population std is sqrt(50 / 5) = sqrt(10).
+#[test]
+fn running_std_merges_batches_exactly() {
+    use fulcrum_learner::stats::RunningStd;
+    let mut r = RunningStd::default();
+    assert_eq!(r.std(), 0.0);
+    r.update(&[1.0, 2.0]);
+    r.update(&[]);
+    r.update(&[3.0, 4.0, 10.0]);
+    assert_eq!(r.count, 5.0);
+    assert!((r.mean - 4.0).abs() < 1e-12);
+    assert!((r.std() - 10f64.sqrt()).abs() < 1e-12, "{}", r.std());
+}

@@ -278,6 +278,12 @@ pub enum Section {
     TruncValue,
     /// `f32`, M.
     LastValue,
+    /// `f32`, N: the intrinsic value head's V_int(s_t) (0 without it).
+    ValueInt,
+    /// `f32`, N: V_int of truncated episodes' final observations.
+    TruncValueInt,
+    /// `f32`, M: V_int after the chunk.
+    LastValueInt,
 }
 
 /// Offsets of a chunk's sections.
@@ -316,6 +322,9 @@ impl ChunkLayout {
             (Section::IntReward, 4 * n),
             (Section::TruncValue, 4 * n),
             (Section::LastValue, 4 * m),
+            (Section::ValueInt, 4 * n),
+            (Section::TruncValueInt, 4 * n),
+            (Section::LastValueInt, 4 * m),
         ];
         let mut off = 0;
         for (k, len) in order {
@@ -329,7 +338,7 @@ impl ChunkLayout {
 
     /// Payload bytes.
     pub fn bytes(&self) -> usize {
-        self.range(Section::LastValue).end
+        self.range(Section::LastValueInt).end
     }
 
     /// The layout a header announces.
@@ -374,6 +383,9 @@ impl ChunkLayout {
             Section::IntReward,
             Section::TruncValue,
             Section::LastValue,
+            Section::ValueInt,
+            Section::TruncValueInt,
+            Section::LastValueInt,
         ] {
             if payload[self.range(s)]
                 .chunks_exact(4)
@@ -630,11 +642,15 @@ mod tests {
             cells: 7,
             flags: 2,
         };
-        // By hand: 15*7 + 15*2 + 15*3 + 3*56 + 4*15*5 + 4*3.
-        assert_eq!(l.bytes(), 105 + 30 + 45 + 168 + 300 + 12);
+        // By hand: 15*7 + 15*2 + 15*3 + 3*56 + 4*15*5 + 4*3, then the intrinsic head's
+        // 4*15 + 4*15 + 4*3.
+        assert_eq!(l.bytes(), 105 + 30 + 45 + 168 + 300 + 12 + 60 + 60 + 12);
         assert_eq!(l.range(Section::Flags), 105..135);
         assert_eq!(l.range(Section::EnvState), 180..348);
         assert_eq!(l.range(Section::LastValue), 648..660);
+        assert_eq!(l.range(Section::ValueInt), 660..720);
+        assert_eq!(l.range(Section::TruncValueInt), 720..780);
+        assert_eq!(l.range(Section::LastValueInt), 780..792);
     }
 
     fn valid_chunk(l: &ChunkLayout) -> (ChunkHeader, Vec<u8>) {

@@ -785,6 +785,7 @@ fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         advantages: &adv,
         returns: &ret,
         action_mask: false,
+        int: None,
     };
     let reps = if quick { 3 } else { 11 };
     let (ms, stats) = median_ms(reps, || {
@@ -884,6 +885,18 @@ fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     Ok(())
 }
 
+/// `fulcrum train ARGS --out DIR`, no input, output to nowhere.
+fn train_command(args: &[&str], dir: &std::path::Path) -> Result<std::process::Command> {
+    let mut c = std::process::Command::new(std::env::current_exe()?);
+    c.arg("train")
+        .args(args)
+        .arg("--out")
+        .arg(dir)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null());
+    Ok(c)
+}
+
 /// Runs `fulcrum train ARGS --out DIR` (then removes DIR) and returns the env steps per
 /// second of each update after the first (which pays for start-up), and the run's
 /// resolved configuration.
@@ -892,13 +905,7 @@ fn train_sps(
     dir: &std::path::Path,
 ) -> Result<(Vec<f64>, fulcrum_learner::config::RunConfig)> {
     let _ = std::fs::remove_dir_all(dir);
-    let out = std::process::Command::new(std::env::current_exe()?)
-        .arg("train")
-        .args(args)
-        .arg("--out")
-        .arg(dir)
-        .stdin(std::process::Stdio::null())
-        .stdout(std::process::Stdio::null())
+    let out = train_command(args, dir)?
         .stderr(std::process::Stdio::piped())
         .output()?;
     ensure!(
@@ -950,28 +957,14 @@ fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>
     use fulcrum_learner::stats::{smooth, steps_to, Point};
     let _ = std::fs::remove_dir_all(dir);
     let t0 = Instant::now();
-    let mut child = std::process::Command::new(std::env::current_exe()?)
-        .arg("train")
-        .args(args)
-        .arg("--out")
-        .arg(dir)
-        .stdin(std::process::Stdio::null())
-        .stdout(std::process::Stdio::null())
+    let mut child = train_command(args, dir)?
         .stderr(std::process::Stdio::null())
         .spawn()?;
     let metrics = dir.join("metrics.csv");
     let solved = loop {
         let done = child.try_wait()?;
         let rows = fulcrum_learner::run::read_metrics(&metrics).unwrap_or_default();
-        let pts: Vec<Point> = rows
-            .iter()
-            .map(|r| Point {
-                steps: r.env_steps as f64,
-                episodes: r.episodes as f64,
-                success: r.success_rate,
-                ret: r.extrinsic_return,
-            })
-            .collect();
+        let pts: Vec<Point> = rows.iter().map(|r| r.point()).collect();
         if let Some(steps) = steps_to(&smooth(&pts, 10), 0.9) {
             break Some((t0.elapsed().as_secs_f64(), steps));
         }

@@ -821,12 +821,7 @@ fn aggregate(
             let pts: Vec<Point> = rows
                 .iter()
                 .filter(|r| r.env_steps <= spec.steps)
-                .map(|r| Point {
-                    steps: r.env_steps as f64,
-                    episodes: r.episodes as f64,
-                    success: r.success_rate,
-                    ret: r.extrinsic_return,
-                })
+                .map(MetricsRow::point)
                 .collect();
             let sm = stats::smooth(&pts, smooth);
             let sc = stats::interpolate(&sm.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), &g);

@@ -16,7 +16,6 @@ use fulcrum_actors::policy::Policy;
 use fulcrum_empowerment::{Method, ToolSel};
 use fulcrum_learner::checkpoint;
 use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::local::shape_for;
 use fulcrum_learner::net::Net;
 use fulcrum_learner::ppo::Adam;
 use fulcrum_learner::run::RunPaths;
@@ -72,7 +71,7 @@ pub fn record(
             paths.dir.display()
         ));
     }
-    let shape = shape_for(w, cfg.hidden);
+    let shape = cfg.shape(w);
     let net = Net::new(shape, cfg.seed, &Device::Cpu)?;
     let mut adam = Adam::new(&net)?;
     checkpoint::load(&ckpt, &net, &mut adam)?;

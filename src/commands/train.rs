@@ -199,6 +199,8 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
             (a.beta.is_some(), "--beta"),
             (a.no_empowerment, "--no-empowerment"),
             (a.no_action_mask, "--no-action-mask"),
+            (a.intrinsic_value_head, "--intrinsic-value-head"),
+            (a.gamma_int.is_some(), "--gamma-int"),
             (a.intrinsic.is_some(), "--intrinsic"),
             (a.horizon_mode.is_some(), "--horizon-mode"),
             (a.seed.is_some(), "--seed"),
@@ -267,11 +269,8 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
         // A damaged checkpoint is refused here, before any process starts.
         let ckpt = paths.checkpoint();
         if ckpt.exists() {
-            let net = fulcrum_learner::net::Net::new(
-                fulcrum_learner::local::shape_for(&w, cfg.hidden),
-                cfg.seed,
-                &candle_core::Device::Cpu,
-            )?;
+            let net =
+                fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
             let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
             if let Err(e) = fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
                 return bad(format!(
@@ -376,6 +375,8 @@ pub fn plan(a: &TrainArgs) -> Result<(RunConfig, World)> {
         remote: a.listen.is_some(),
         stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
         action_mask: !a.no_action_mask,
+        intrinsic_value_head: a.intrinsic_value_head,
+        gamma_int: a.gamma_int.unwrap_or(0.99),
         ppo: {
             let d = preset.ppo();
             PpoConfig {

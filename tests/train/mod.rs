@@ -335,6 +335,8 @@ fn resumes_are_bit_for_bit_with_every_new_option() {
         ("exact-nomask", &["--no-action-mask"][..]),
         // The KL coefficient adapts after each update and is checkpointed.
         ("exact-rllib", &["--ppo-preset", "rllib"][..]),
+        // Two value heads: the intrinsic rewards' running scale is checkpointed.
+        ("exact-2h", &["--intrinsic-value-head", "--beta", "0.1"][..]),
     ] {
         resumed_equals_uninterrupted(tag, extra);
     }
@@ -382,7 +384,9 @@ fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
     // And the final weights are the same bits.
     let dev = candle_core::Device::Cpu;
     let w = fulcrum_shared::load_world("room").unwrap();
-    let shape = fulcrum_learner::local::shape_for(&w, 64);
+    let shape = fulcrum_learner::config::RunConfig::load(&a.join("config.toml"))
+        .unwrap()
+        .shape(&w);
     let flat = |dir: &Path| {
         let net = fulcrum_learner::net::Net::new(shape, 99, &dev).unwrap();
         let mut adam = fulcrum_learner::ppo::Adam::new(&net).unwrap();
@@ -433,6 +437,27 @@ fn bad_training_settings_are_refused_before_anything_starts() {
                 d,
             ],
             "contradict",
+        ),
+        (
+            vec![
+                "room",
+                "--intrinsic-value-head",
+                "--no-empowerment",
+                "--out",
+                d,
+            ],
+            "--intrinsic-value-head needs an intrinsic reward",
+        ),
+        (
+            vec![
+                "room",
+                "--intrinsic-value-head",
+                "--gamma-int",
+                "1.5",
+                "--out",
+                d,
+            ],
+            "--gamma-int 1.5",
         ),
     ] {
         let (s, err, _) = finish(train(&args), Duration::from_secs(30));
