@@ -48,6 +48,13 @@ if [[ "$mode" != pictures || -d experiments/masked/exp2 ]]; then
   masked exp1-wall 499712
   masked exp3 2998272
   masked exp2 2998272
+  python3 scripts/masked_tables.py > "$out/masked-tables.md"
+  # Two value heads, a first look (beta 0.1 for every form).
+  for world in exp1-tree exp1-wall; do
+    $f experiment "$world" --seeds 10 --steps 499712 --arms additive,horizon-potential,first-visit \
+      --beta 0.1 --out "experiments/two-heads/$world" -- --intrinsic-value-head > /dev/null
+    cp "experiments/two-heads/$world/summary.md" "$out/two-heads-$world-summary.md"
+  done
 fi
 # The paper's unmasked setting, measured before masking and the advantage floor existed:
 # `run` passes `-- --no-action-mask --ppo-preset cleanrl`, which gives those same runs.

@@ -95,7 +95,7 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             .unwrap_or(0)
     );
     eprintln!(
-        "fulcrum train: {} run {} in {} ({} actors x {} worlds, {} learner threads, {} updates of {} steps{}; namespace {ns})",
+        "fulcrum train: {} run {} in {} ({} actors x {} worlds, {} learner threads, {} updates of {} steps{}{}{}; namespace {ns})",
         if resumed { "resuming" } else { "starting" },
         cfg.run_id,
         paths.dir.display(),
@@ -117,6 +117,16 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             )
         } else {
             ", no empowerment".into()
+        },
+        if cfg.intrinsic_value_head {
+            ", two value heads"
+        } else {
+            ""
+        },
+        if cfg.action_mask {
+            ""
+        } else {
+            ", unmasked actions"
         },
     );
     let mut sup = Supervisor {

@@ -174,8 +174,22 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         .map(|(_, s)| text_width(font, s, TICK_SIZE))
         .fold(0.0, f64::max);
     let left = 24.0 + 14.0 + tick_w.ceil() + 12.0;
-    let top = 80.0;
     let right = f64::from(WIDTH) - 24.0;
+    // Legend rows (a swatch and a name per arm), as many as the width needs; the panel
+    // starts below the last.
+    let entry_w = |b: &Band| 24.0 + 6.0 + text_width(font, &b.name, TICK_SIZE) + 18.0;
+    let mut rows: Vec<Vec<usize>> = vec![Vec::new()];
+    let mut used = 0.0;
+    for (i, b) in c.bands.iter().enumerate() {
+        let w = entry_w(b);
+        if used + w > right - 24.0 && rows.last().is_some_and(|r| !r.is_empty()) {
+            rows.push(Vec::new());
+            used = 0.0;
+        }
+        rows.last_mut().expect("one row at least").push(i);
+        used += w;
+    }
+    let top = 80.0 + 20.0 * (rows.len() - 1) as f64;
     let bottom = f64::from(HEIGHT) - 70.0;
     let px = |x: f64| left + (x - x_lo) / (x_hi - x_lo) * (right - left);
     let py = |y: f64| bottom - (y - y_lo) / (y_hi - y_lo) * (bottom - top);
@@ -297,32 +311,35 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         }
     }
     // Legend above the panel, right-aligned: a swatch and a name per arm.
-    let mut x = right;
-    let y = top - 20.0;
-    for (i, b) in c.bands.iter().enumerate().rev() {
-        let color = PALETTE[i % PALETTE.len()];
-        let w = text_width(font, &b.name, TICK_SIZE);
-        out.push(Shape::Text(Label::new(
-            b.name.clone(),
-            x,
-            y,
-            TICK_SIZE,
-            HAlign::Right,
-            VAlign::Middle,
-        )));
-        x -= w + 6.0;
-        out.push(Shape::Fill(
-            vec![
-                (x - 24.0, y - 7.0),
-                (x, y - 7.0),
-                (x, y + 7.0),
-                (x - 24.0, y + 7.0),
-            ],
-            color,
-            BAND_ALPHA,
-        ));
-        out.push(Shape::Line(vec![(x - 24.0, y), (x, y)], color, 2.5));
-        x -= 24.0 + 18.0;
+    for (r, row) in rows.iter().enumerate() {
+        let mut x = right;
+        let y = 60.0 + 20.0 * r as f64;
+        for &i in row.iter().rev() {
+            let b = &c.bands[i];
+            let color = PALETTE[i % PALETTE.len()];
+            let w = text_width(font, &b.name, TICK_SIZE);
+            out.push(Shape::Text(Label::new(
+                b.name.clone(),
+                x,
+                y,
+                TICK_SIZE,
+                HAlign::Right,
+                VAlign::Middle,
+            )));
+            x -= w + 6.0;
+            out.push(Shape::Fill(
+                vec![
+                    (x - 24.0, y - 7.0),
+                    (x, y - 7.0),
+                    (x, y + 7.0),
+                    (x - 24.0, y + 7.0),
+                ],
+                color,
+                BAND_ALPHA,
+            ));
+            out.push(Shape::Line(vec![(x - 24.0, y), (x, y)], color, 2.5));
+            x -= 24.0 + 18.0;
+        }
     }
     out
 }
