@@ -282,10 +282,21 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
             let net =
                 fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
             let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
-            if let Err(e) = fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
-                return bad(format!(
+            let extra = match fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
+                Ok(x) => x,
+                Err(e) => return bad(format!(
                     "{e}; the run cannot continue from it (start a new run, or restore the file)"
-                ));
+                )),
+            };
+            // The action space is part of what the policy learnt.
+            if let Some(m) = extra.meta.get("action_mask") {
+                if *m != cfg.action_mask.to_string() {
+                    return bad(format!(
+                        "--resume {}: the checkpoint was trained with action_mask = {m}, but config.toml says {}",
+                        dir.display(),
+                        cfg.action_mask
+                    ));
+                }
             }
         }
         write_config(&paths, &cfg)?;

@@ -913,6 +913,41 @@ fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The action mask is recorded in the checkpoint: a config.toml edited to the other
+/// setting is refused on --resume before anything starts (exit 2, one sentence).
+#[test]
+fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
+    let dir = run_dir("mask-flip");
+    let d = dir.to_str().unwrap();
+    let (s, err, _) = finish(
+        train(
+            &[
+                &["room", "--actors", "1", "--steps", "256", "--out", d][..],
+                SMALL,
+            ]
+            .concat(),
+        ),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    let cfg = dir.join("config.toml");
+    let text = std::fs::read_to_string(&cfg).unwrap();
+    assert!(text.contains("action_mask = true"), "{text}");
+    std::fs::write(
+        &cfg,
+        text.replace("action_mask = true", "action_mask = false"),
+    )
+    .unwrap();
+    let (s, err, _) = finish(
+        train(&["--resume", d, "--steps", "512"]),
+        Duration::from_secs(60),
+    );
+    assert_eq!(s.code(), Some(2), "{err}");
+    assert!(err.contains("trained with action_mask = true"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn a_torn_metrics_row_is_dropped_on_resume() {
     let dir = run_dir("torn");
