@@ -1,9 +1,12 @@
 //! fulcrum-learner: the candle PPO learner.
 //!
-//! PPO as CleanRL's `ppo.py` ([`ppo`]), on an actor-critic network whose first layer
-//! sums one embedding row per (cell, glyph) ([`net`]), with GAE that tells truncation
-//! from termination ([`gae`]). [`local`] trains in one process (the reference loop that
-//! the multi-process training of `fulcrum train` distributes).
+//! PPO as CleanRL's `ppo.py` with an advantage floor, or RLlib's defaults ([`ppo`]:
+//! presets), over the actions each mode allows (`fulcrum_shared::mask`), on an
+//! actor-critic network whose first layer sums one embedding row per (cell, glyph), with
+//! an optional second value head for the intrinsic return ([`net`]), with GAE that tells
+//! truncation from termination ([`gae`]). [`local`] trains in one process (the reference
+//! loop that the multi-process training of `fulcrum train` distributes); [`stats`] is
+//! what `fulcrum experiment` reports.
 
 /// Checkpoints: weights, optimiser state, counters, written atomically.
 pub mod checkpoint;
@@ -21,7 +24,9 @@ pub mod net;
 pub mod ppo;
 /// The learner process of `fulcrum train`.
 pub mod run;
-/// Aggregating the learning curves of several runs (means, bands, Welch's t-test).
+/// Aggregating the learning curves of several runs (means, bands, Welch's t-test) and
+/// comparing times to solve (IQM, bootstrap intervals, Fisher's exact, log-rank,
+/// Kaplan-Meier).
 pub mod stats;
 
 pub use gae::{gae, Rollout};
