@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use clap::Parser;
 
 // candle frees large per-op buffers; glibc's allocator turns that into page faults
-// (PITFALLS: candle 6).
+// (candle allocates and frees a buffer per op).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

@@ -3,7 +3,7 @@
 //!
 //! The matrix entry `[j, i]` is the mean of `E^h_{j,{i}}(s)` over the normal-mode states
 //! of the space, with `h = horizon_equipped` where tool j is held and
-//! `horizon_unequipped` elsewhere (WORLD.md). Tool selection for a column is its argmax,
+//! `horizon_unequipped` elsewhere (`docs/world.md`). Tool selection for a column is its argmax,
 //! ties to the lower tool index, a column of zeros selects no tool (equation 6).
 
 use fulcrum_shared::{Mode, ObjectSet, State, World};

@@ -1,6 +1,6 @@
 //! fulcrum-empowerment: exact object empowerment over an enumerated state space.
 //!
-//! For a tool j, objects D and horizon h (WORLD.md, the paper's equations 4 and 5):
+//! For a tool j, objects D and horizon h (`docs/world.md`, the paper's equations 4 and 5):
 //!
 //! ```text
 //! E^h_{j,D}(s) = log2 | { proj_D(T^h(s, a)) : a in (A^{T_j})^h } |     bits

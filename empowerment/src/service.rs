@@ -12,7 +12,7 @@
 //!   all clients (the count-based novelty bonus of `train --intrinsic count`).
 //!
 //! Wake-ups: pub/sub and request-response ports have no file descriptor, so requests
-//! and responses are paired with event services (PITFALLS 4). Each side first spins a
+//! and responses are paired with event services (iceoryx2's request-response and pub/sub ports cannot be waited on by themselves). Each side first spins a
 //! short bounded while (polling, no syscall) for the answer, then blocks on its
 //! listener: a fast answer costs no wake-up, an idle process burns no core.
 //!

@@ -1,6 +1,6 @@
 //! Every value of `worlds/EXPECTED.md` (the paper's Tables II and III and Figs. 2, 3,
 //! 6, 12 in our worlds), computed there by an independent brute-force implementation of
-//! WORLD.md. Relative tolerance 1e-9.
+//! `docs/world.md`. Relative tolerance 1e-9.
 
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
 use fulcrum_shared::{load_world, parse_world, ObjectSet, World};
@@ -120,7 +120,7 @@ fn exp2_matrix() {
     );
 }
 
-/// exp3 values from `tests/reference/exp3_bruteforce.py` (WORLD.md's dynamics). The
+/// exp3 values from `tests/reference/exp3_bruteforce.py` (the dynamics of `docs/world.md`). The
 /// numbers first published in EXPECTED.md came from a brute force in which the agent
 /// walks into an open doorway onto a boulder; `--walk-onto-boulder` reproduces them.
 #[test]

@@ -3,7 +3,7 @@
 //! rate >= 0.9 within 200k env steps, with and without the empowerment bonus.
 
 // candle frees large per-op buffers: with glibc's allocator a third of training time
-// went to page faults (PITFALLS: candle 6).
+// went to page faults (candle allocates and frees a buffer per op).
 #[global_allocator]
 static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 

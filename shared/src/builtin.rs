@@ -1,6 +1,6 @@
 //! The paper's four worlds, embedded in the binary under their names.
 //!
-//! The files in `worlds/` are copies of the canonical ones in `../shared/worlds/`.
+//! The files in `worlds/` are the paper's four worlds and `room`, embedded in the binary.
 
 /// Names of the built-in worlds.
 pub const NAMES: [&str; 5] = ["exp1-tree", "exp1-wall", "exp2", "exp3", "room"];

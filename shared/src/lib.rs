@@ -1,4 +1,4 @@
-//! fulcrum-shared: the tool world of `WORLD.md`, which actors step and the empowerment
+//! fulcrum-shared: the tool world of `docs/world.md`, which actors step and the empowerment
 //! engine plans over.
 //!
 //! ```

@@ -1,4 +1,4 @@
-//! World files (TOML, see WORLD.md): parsing and validation.
+//! World files (TOML, see `docs/world.md`): parsing and validation.
 //!
 //! Every error names the file, and the line and column where it can be placed, in one
 //! sentence. Arbitrary input never panics (property-tested).

@@ -176,7 +176,7 @@ impl World {
         out
     }
 
-    /// Parse a state description (see DESIGN.md). Objects not named keep their initial
+    /// Parse a state description (`docs/world.md`, "The state"). Objects not named keep their initial
     /// state. Checks only form and plain impossibilities (agent inside a wall, a held
     /// tool's cell under the agent, ...); membership in the reachable state space is the
     /// caller's check, since it needs the enumerated space.

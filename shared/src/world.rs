@@ -1,4 +1,4 @@
-//! The tool world: map, tools, objects, rules, and the exact dynamics of `WORLD.md`.
+//! The tool world: map, tools, objects, rules, and the exact dynamics of `docs/world.md`.
 //!
 //! A [`World`] is immutable once parsed; everything that changes lives in a [`State`].
 //! [`World::step`] is the deterministic transition function T(s, a): no randomness, no
@@ -43,7 +43,7 @@ pub enum Terrain {
     Goal,
 }
 
-/// The four kinds of object of WORLD.md.
+/// The four kinds of object (`docs/world.md`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ObjectKind {
     /// `T`: intact / destroyed.
@@ -158,7 +158,7 @@ pub struct Object {
 pub enum Range {
     /// The single cell next to the agent.
     Adjacent,
-    /// A bolt along the direction (see WORLD.md).
+    /// A bolt along the direction (see `docs/world.md`).
     Bolt,
 }
 
@@ -177,7 +177,7 @@ pub struct Rule {
     pub range: Range,
 }
 
-/// The default rule table of WORLD.md.
+/// The default rule table (`docs/world.md`, "What tools do").
 pub fn default_rules() -> Vec<Rule> {
     use ObjectKind::*;
     let r = |tool: &str, target, from, to, range| Rule {

@@ -1,6 +1,6 @@
-//! The dynamics of WORLD.md, case by case.
+//! The dynamics of `docs/world.md`, case by case.
 //!
-//! Every expected value is derived by hand from WORLD.md (the reasoning is in the
+//! Every expected value is derived by hand from `docs/world.md` (the reasoning is in the
 //! comments), never read back from the code under test. States are built either by
 //! stepping from a parsed world or by writing the packed fields documented in
 //! `shared/src/state.rs` directly: a tree, wall or door slot holds 0 intact/closed,
@@ -9,7 +9,7 @@
 
 use fulcrum_shared::{parse_world, Episode, Mode, State, World};
 
-// Action numbers of WORLD.md: N=0, E=1, S=2, W=3, apply=4, select_k = 5 + k.
+// Action numbers (`docs/world.md`): N=0, E=1, S=2, W=3, apply=4, select_k = 5 + k.
 const N: u8 = 0;
 const E: u8 = 1;
 const S: u8 = 2;

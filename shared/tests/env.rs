@@ -1,5 +1,5 @@
 //! Episodes (task rewards, termination, truncation), the observation encoding, and the
-//! text form of states. Expected values are derived by hand from WORLD.md, DESIGN.md and
+//! text form of states. Expected values are derived by hand from `docs/world.md` and
 //! the encoding documented at the top of `shared/src/env.rs`.
 
 use std::collections::{HashSet, VecDeque};
@@ -9,7 +9,7 @@ use fulcrum_shared::world::ObjectKind;
 use fulcrum_shared::{parse_world, Mode, State, Task, World};
 use proptest::prelude::*;
 
-// Actions of WORLD.md.
+// Actions (`docs/world.md`).
 const E: u8 = 1;
 const S: u8 = 2;
 const W: u8 = 3;

@@ -1,4 +1,4 @@
-//! World files: every error of WORLD.md at its file:line:col, names and orders, the
+//! World files: every error of `docs/world.md` at its file:line:col, names and orders, the
 //! built-in worlds, and property tests that no input makes the parser panic.
 //!
 //! Lines and columns are 1-based and counted by hand from the texts below (columns in
@@ -52,7 +52,7 @@ fn ok(text: &str) -> World {
 }
 
 // ---------------------------------------------------------------------------------
-// The errors of WORLD.md.
+// The errors `docs/world.md` lists.
 
 #[test]
 fn unknown_glyph() {
@@ -545,7 +545,7 @@ fn empowerment_section() {
         "a = \"axe\"",
         "k = \"key\"",
     ]);
-    // One horizon given: it serves both (WORLD.md, tool-object matrix).
+    // One horizon given: it serves both (`docs/world.md`, the tool-object matrix).
     let w = ok(&format!("{base}[empowerment]\nhorizon_equipped = 5\n"));
     assert_eq!(
         (

@@ -1,4 +1,4 @@
-//! The command line: JSON shapes of DESIGN.md, values of worlds/EXPECTED.md through the
+//! The command line: JSON shapes the README shows, values of worlds/EXPECTED.md through the
 //! binary, bad input (one sentence, exit code 2), and files written.
 
 use std::path::PathBuf;

@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
-"""Independent brute force of WORLD.md on exp3, for the exp3 values in worlds/EXPECTED.md.
+"""Independent brute force of docs/world.md on exp3, for the exp3 values in worlds/EXPECTED.md.
 
 Shares no code with fulcrum. States are tuples (x, y, mode, inventory, door, boulder);
 the state space is a BFS over all 7 actions; E^h is computed by propagating the sets of
 reachable projections (the same recursion as fulcrum's engine, written independently,
 with Python sets instead of bitsets).
 
-    python3 exp3_bruteforce.py             # WORLD.md: 52051 states, 14849 normal
+    python3 exp3_bruteforce.py             # docs/world.md: 52051 states, 14849 normal
     python3 exp3_bruteforce.py --walk-onto-boulder
-        # reproduces the numbers first published in ../shared/worlds/EXPECTED.md
+        # reproduces the numbers first published in an earlier worlds/EXPECTED.md
         # (35174 / 10048 states): there, an agent moving into an open doorway enters it
         # even when a boulder stands in it, instead of pushing the boulder on.
 """
