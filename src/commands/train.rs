@@ -282,11 +282,11 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
             let net =
                 fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
             let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+            const CANNOT: &str =
+                "the run cannot continue from it (start a new run, or restore the file)";
             let extra = match fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
                 Ok(x) => x,
-                Err(e) => return bad(format!(
-                    "{e}; the run cannot continue from it (start a new run, or restore the file)"
-                )),
+                Err(e) => return bad(format!("{e}; {CANNOT}")),
             };
             // The action space is part of what the policy learnt.
             if let Some(m) = extra.meta.get("action_mask") {
