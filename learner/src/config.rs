@@ -123,6 +123,19 @@ impl RunConfig {
         self.intrinsic.parse().unwrap_or(Intrinsic::Additive)
     }
 
+    /// Whether a checkpoint's metadata fits this configuration: the action space (masked
+    /// or not) is part of what the policy learnt, so a checkpoint is never continued
+    /// with the other setting. Checkpoints from before masking carry no mark.
+    pub fn fits_checkpoint(&self, extra: &crate::checkpoint::Extra) -> Result<(), String> {
+        match extra.meta.get("action_mask") {
+            Some(m) if *m != self.action_mask.to_string() => Err(format!(
+                "the checkpoint was trained with action_mask = {m}, but config.toml says {}",
+                self.action_mask
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// Env steps per update.
     pub fn batch(&self) -> usize {
         self.actors * self.envs_per_actor * self.steps_per_chunk

@@ -271,14 +271,16 @@ impl<'a> Data<'a> {
     /// masking): masked actions get probability 0 in the log-probabilities, the entropy
     /// and the gradient. Fails when a taken action is not allowed (a chunk sampled
     /// without the mask).
-    pub fn with_action_mask(mut self, on: bool, flag_bytes: &[u8], flags: usize) -> Result<Self> {
+    pub fn with_action_mask(mut self, on: bool) -> Result<Self> {
         if !on {
             self.masks = None;
             return Ok(self);
         }
-        let masks: Vec<u32> = flag_bytes
-            .chunks_exact(flags.max(1))
-            .map(fulcrum_shared::mask::action_mask)
+        let f = self.flags.len() / self.actions.len().max(1);
+        let masks: Vec<u32> = self
+            .flags
+            .chunks_exact(f.max(1))
+            .map(fulcrum_shared::mask::action_mask_f32)
             .collect();
         if let Some(i) = (0..self.actions.len()).find(|&i| masks[i] >> self.actions[i] & 1 == 0) {
             bail!(
@@ -1422,7 +1424,7 @@ mod tests {
                 &r.returns,
             )
             .unwrap()
-            .with_action_mask(masked, &r.flags, shape.flags)
+            .with_action_mask(masked)
             .unwrap();
             let data = if int_value {
                 data.with_intrinsic(&vals_int, &rets_int).unwrap()

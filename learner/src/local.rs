@@ -310,7 +310,7 @@ pub fn update(
     let data = Data::new(
         net.shape, d.glyphs, d.flags, d.actions, d.logprobs, d.values, advantages, d.returns,
     )?
-    .with_action_mask(d.action_mask, d.flags, net.shape.flags)?;
+    .with_action_mask(d.action_mask)?;
     let data = match d.int {
         Some((v, r)) => data.with_intrinsic(v, r)?,
         None => data,

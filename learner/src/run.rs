@@ -328,17 +328,8 @@ pub fn run_learner(
     let ckpt = paths.checkpoint();
     if ckpt.exists() {
         let extra = checkpoint::load(&ckpt, &net, &mut adam)?;
-        // The policy's action space is part of what was learnt: a checkpoint trained
-        // with the mask is not continued without it (or the other way round).
-        let masked = extra.meta.get("action_mask").map(|v| v == "true");
-        if masked.is_some_and(|m| m != cfg.action_mask) {
-            return Err(LearnerError::Run(format!(
-                "{} was trained {} the action mask but config.toml says action_mask = {}",
-                ckpt.display(),
-                if cfg.action_mask { "without" } else { "with" },
-                cfg.action_mask
-            )));
-        }
+        cfg.fits_checkpoint(&extra)
+            .map_err(|e| LearnerError::Run(format!("{}: {e}", ckpt.display())))?;
         let get = |k: &str| extra.counters.get(k).copied().unwrap_or(0);
         ctr.update = get("update");
         ctr.env_steps = get("env_steps");

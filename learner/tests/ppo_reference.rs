@@ -242,7 +242,7 @@ fn fused_case(masked: bool) {
         &b.returns,
     )
     .unwrap()
-    .with_action_mask(masked, &b.flags, SHAPE.flags)
+    .with_action_mask(masked)
     .unwrap();
     let idx: Vec<usize> = (0..N).collect();
     for (max_norm, want_g, want_w) in [

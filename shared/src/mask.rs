@@ -54,8 +54,8 @@ pub fn action_mask(flags: &[u8]) -> u32 {
     }
 }
 
-/// [`action_mask`] of flags held as `f32` (the learner's copy): a flag is set when it is
-/// not 0.
+/// [`action_mask`] of flags held as `f32` (the learner's copy of a batch's flags): a flag
+/// is set when it is not 0.
 pub fn action_mask_f32(flags: &[f32]) -> u32 {
     let mut bytes = [0u8; 2 * 16 + 2];
     let n = flags.len().min(bytes.len());

@@ -288,15 +288,8 @@ fn resolve(a: &TrainArgs) -> Result<(RunConfig, World, RunPaths, bool)> {
                 Ok(x) => x,
                 Err(e) => return bad(format!("{e}; {CANNOT}")),
             };
-            // The action space is part of what the policy learnt.
-            if let Some(m) = extra.meta.get("action_mask") {
-                if *m != cfg.action_mask.to_string() {
-                    return bad(format!(
-                        "--resume {}: the checkpoint was trained with action_mask = {m}, but config.toml says {}",
-                        dir.display(),
-                        cfg.action_mask
-                    ));
-                }
+            if let Err(e) = cfg.fits_checkpoint(&extra) {
+                return bad(format!("--resume {}: {e}", dir.display()));
             }
         }
         write_config(&paths, &cfg)?;

@@ -1138,8 +1138,17 @@ fn a_failed_checkpoint_write_ends_the_run_clearly_and_keeps_the_last_one() {
     wait_rows(&dir, 21, Duration::from_secs(60));
     // The next checkpoint cannot be written: its temporary path is taken by a
     // non-empty directory (a failure even root cannot override, like a full disk).
+    // The learner may be writing a checkpoint right now (its own temporary file stands
+    // there for a moment): take the path as soon as it is free.
     let tmp = dir.join("checkpoints/latest.safetensors.tmp");
-    std::fs::create_dir(&tmp).unwrap();
+    let t0 = Instant::now();
+    while let Err(e) = std::fs::create_dir(&tmp) {
+        assert!(
+            e.kind() == std::io::ErrorKind::AlreadyExists && t0.elapsed() < Duration::from_secs(10),
+            "{e}"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
     std::fs::write(tmp.join("x"), b"x").unwrap();
     let (status, err, _) = finish(c, Duration::from_secs(60));
     assert_eq!(status.code(), Some(1), "{err}");
