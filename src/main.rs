@@ -12,7 +12,6 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 mod cli;
 mod commands;
-mod plot;
 
 fn main() -> ExitCode {
     let cli = cli::Cli::parse();

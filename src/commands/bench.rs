@@ -17,7 +17,7 @@ use crate::cli::BenchArgs;
 #[cfg(feature = "multihost")]
 pub mod remote;
 mod scaling;
-use crate::plot::write_atomic;
+use fulcrum_shared::fsio::write_atomic;
 
 /// One measured figure.
 struct Figure {

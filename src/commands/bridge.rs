@@ -536,7 +536,7 @@ fn write_hosts(path: &Path, hosts: &BTreeMap<String, (u32, String)>) -> Result<(
 
 /// Write a file through a temporary file and a rename.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    crate::plot::write_atomic(path, bytes)
+    fulcrum_shared::fsio::write_atomic(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
 }
 

@@ -10,7 +10,6 @@ use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
 use crate::commands::{bad, engine, holding_mask, object_set, objects_or_default, tool_sel, world};
-use crate::plot;
 
 /// Run an `empowerment` subcommand.
 pub fn run(cmd: EmpCmd) -> Result<()> {
@@ -69,7 +68,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
     let m = e.matrix(&columns, hu, he, a.method.into())?;
     let elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
     if let Some(path) = &a.png {
-        let pic = crate::plot::MatrixPicture {
+        let pic = fulcrum_plot::MatrixPicture {
             title: format!(
                 "{}: tool-object empowerment, h = {hu} unequipped / {he} equipped",
                 w.name
@@ -79,7 +78,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
             values: m.values.clone(),
             selected: m.selection.clone(),
         };
-        crate::plot::matrix_png(path, &pic)?;
+        fulcrum_plot::matrix_png(path, &pic)?;
         eprintln!("wrote {}", path.display());
     }
     if a.json {
@@ -207,9 +206,9 @@ fn landscape(a: &LandscapeArgs) -> Result<()> {
                 &a.holding
             }
         );
-        plot::heatmap_png(
+        fulcrum_plot::heatmap_png(
             path,
-            &plot::Heatmap {
+            &fulcrum_plot::Heatmap {
                 title: &title,
                 values: &l.values,
                 rock: &rock,
@@ -392,9 +391,9 @@ fn trace(a: &TraceArgs) -> Result<()> {
             Some(h) => format!("E^{h} (bits)"),
             None => format!("E^{hu}/E^{he} (bits)"),
         };
-        plot::trace_png(
+        fulcrum_plot::trace_png(
             path,
-            &plot::Trace {
+            &fulcrum_plot::Trace {
                 title: &title,
                 value_label: &vlabel,
                 values: &values,

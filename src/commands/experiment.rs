@@ -323,7 +323,7 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         "# fulcrum experiment; run the same command again to resume or extend it.\n{}",
         toml::to_string(&spec).context("cannot encode experiment.toml")?
     );
-    crate::plot::write_atomic(&spec_path, text.as_bytes())
+    fulcrum_shared::fsio::write_atomic(&spec_path, text.as_bytes())
         .with_context(|| format!("cannot write {}", spec_path.display()))?;
 
     // The pairs of this command (the spec may hold more arms from earlier commands).
@@ -944,9 +944,9 @@ fn aggregate(
     };
     let markdown = markdown(&summary);
     let json = serde_json::to_string_pretty(&summary).context("cannot encode summary.json")?;
-    crate::plot::write_atomic(&dir.join("summary.json"), json.as_bytes())
+    fulcrum_shared::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
-    crate::plot::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
+    fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     draw(&summary, dir)?;
     Ok(markdown)
@@ -1083,7 +1083,7 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
                   std: fn(&ArmSummary) -> &Vec<Option<f64>>| {
         s.arms
             .iter()
-            .map(|a| crate::plot::Band {
+            .map(|a| fulcrum_plot::Band {
                 name: a.name.clone(),
                 mean: mean(a).iter().map(|v| v.unwrap_or(f64::NAN)).collect(),
                 std: std(a).iter().map(|v| v.unwrap_or(f64::NAN)).collect(),
@@ -1109,7 +1109,7 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
             "fraction of seeds solved",
             s.arms
                 .iter()
-                .map(|a| crate::plot::Band {
+                .map(|a| fulcrum_plot::Band {
                     name: a.name.clone(),
                     mean: a.solved_by.iter().map(|v| v.unwrap_or(f64::NAN)).collect(),
                     std: vec![0.0; a.solved_by.len()],
@@ -1118,9 +1118,9 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
             Some((0.0, 1.0)),
         ),
     ] {
-        let chart = crate::plot::BandChart {
+        let chart = fulcrum_plot::BandChart {
             y_range: unit,
-            ..crate::plot::BandChart::over_steps(
+            ..fulcrum_plot::BandChart::over_steps(
                 if file == "solved" {
                     format!(
                         "{}: seeds at success {} by env step t ({seeds} seeds, Kaplan-Meier)",
@@ -1137,9 +1137,9 @@ fn draw(s: &Summary, dir: &Path) -> Result<()> {
         for ext in ["png", "svg"] {
             let path = dir.join("plots").join(format!("{file}.{ext}"));
             let r = if ext == "png" {
-                crate::plot::band_chart_png(&path, &chart)
+                fulcrum_plot::band_chart_png(&path, &chart)
             } else {
-                crate::plot::band_chart_svg(&path, &chart)
+                fulcrum_plot::band_chart_svg(&path, &chart)
             };
             r.with_context(|| format!("cannot draw {}", path.display()))?;
         }

@@ -127,7 +127,7 @@ pub fn record(
                 } else {
                     "time limit"
                 };
-                let strip = crate::plot::Strip {
+                let strip = fulcrum_plot::Strip {
                     title: format!(
                         "{}: episode {k} of the policy (seed {seed}), {} steps, {outcome}, return {ret}, E summed {e_sum:.1} bits",
                         w.name, ep.t
@@ -137,7 +137,7 @@ pub fn record(
                     frames,
                 };
                 let path = out.join(format!("episode-{k}.png"));
-                crate::plot::episode_png(&path, &strip)
+                fulcrum_plot::episode_png(&path, &strip)
                     .with_context(|| format!("cannot draw {}", path.display()))?;
                 written.push(path);
                 break;
@@ -153,7 +153,7 @@ fn frame(
     s: &fulcrum_shared::State,
     value: &dyn Fn(&fulcrum_shared::State) -> Option<f64>,
     caption: String,
-) -> crate::plot::Frame {
+) -> fulcrum_plot::Frame {
     let mut glyphs = Vec::with_capacity(w.width * w.height);
     let mut values = Vec::with_capacity(w.width * w.height);
     for y in 0..w.height {
@@ -165,7 +165,7 @@ fn frame(
             values.push(value(&t));
         }
     }
-    crate::plot::Frame {
+    fulcrum_plot::Frame {
         caption,
         glyphs,
         values,

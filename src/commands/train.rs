@@ -451,7 +451,7 @@ fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
         paths.dir.display(),
         cfg.to_toml()
     );
-    crate::plot::write_atomic(&paths.config(), text.as_bytes())
+    fulcrum_shared::fsio::write_atomic(&paths.config(), text.as_bytes())
         .with_context(|| format!("cannot write {}", paths.config().display()))
 }
 
@@ -928,9 +928,9 @@ fn draw_curve(w: &World, paths: &RunPaths) -> Option<PathBuf> {
     if rows.is_empty() {
         return None;
     }
-    let pts: Vec<crate::plot::CurvePoint> = rows
+    let pts: Vec<fulcrum_plot::CurvePoint> = rows
         .iter()
-        .map(|r| crate::plot::CurvePoint {
+        .map(|r| fulcrum_plot::CurvePoint {
             env_steps: r.env_steps,
             success_rate: r.success_rate,
             extrinsic_return: r.extrinsic_return,
@@ -939,7 +939,7 @@ fn draw_curve(w: &World, paths: &RunPaths) -> Option<PathBuf> {
         .collect();
     let path = paths.plots().join("learning-curve.png");
     let _ = std::fs::create_dir_all(paths.plots());
-    match crate::plot::learning_curve_png(&path, &format!("{}: PPO", w.name), &pts) {
+    match fulcrum_plot::learning_curve_png(&path, &format!("{}: PPO", w.name), &pts) {
         Ok(()) => Some(path),
         Err(e) => {
             eprintln!("fulcrum train: the learning curve was not drawn: {e}");

@@ -9,7 +9,7 @@ use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
 use crate::commands::{engine, world};
-use crate::plot::write_atomic;
+use fulcrum_shared::fsio::write_atomic;
 
 /// Run a `world` subcommand.
 pub fn run(cmd: WorldCmd) -> Result<()> {

@@ -17,7 +17,7 @@ use fulcrum_shared::generate::{generate, GenParams};
 use fulcrum_shared::{parse_world, ObjectSet};
 
 use super::Figure;
-use crate::plot::{band_chart_png, Band, BandChart};
+use fulcrum_plot::{band_chart_png, Band, BandChart};
 
 /// Generated worlds near each decade of states (found by a sweep of `world generate`):
 /// (width = height, tools, objects, seed).

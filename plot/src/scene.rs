@@ -5,9 +5,12 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::canvas::{draw_err, save_png, Canvas};
+use crate::error::PlotError;
+use crate::style::{rgb, Rgb};
+use crate::text::{HAlign, Label, VAlign};
+use fulcrum_shared::fsio::write_atomic;
 use plotters::prelude::*;
-
-use super::{draw_err, rgb, save_png, write_atomic, Canvas, HAlign, Label, PlotError, Rgb, VAlign};
 
 /// One element of a picture.
 pub(crate) enum Shape {
@@ -21,7 +24,7 @@ pub(crate) enum Shape {
 
 /// Renders `shapes` on a white `width` x `height` picture and writes it as a PNG.
 pub(crate) fn png(path: &Path, width: u32, height: u32, shapes: &[Shape]) -> Result<(), PlotError> {
-    let font = super::fonts(path)?;
+    let font = crate::text::fonts(path)?;
     let mut buf = vec![255u8; width as usize * height as usize * 3];
     {
         let area = BitMapBackend::with_buffer(&mut buf, (width, height)).into_drawing_area();

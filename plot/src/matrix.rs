@@ -5,11 +5,10 @@
 
 use std::path::Path;
 
-use super::scene::{self, Shape};
-use super::{
-    fit_size, fonts, text_on, text_width, viridis, HAlign, Label, PlotError, AXIS, LABEL_SIZE,
-    TICK_SIZE, TITLE_SIZE,
-};
+use crate::error::PlotError;
+use crate::scene::{self, Shape};
+use crate::style::{text_on, viridis, AXIS, LABEL_SIZE, TICK_SIZE, TITLE_SIZE};
+use crate::text::{fit_size, fonts, text_width, HAlign, Label};
 
 /// A matrix to draw.
 #[derive(Debug, Clone)]
@@ -62,7 +61,7 @@ pub fn matrix_png(path: &Path, m: &MatrixPicture) -> Result<(), PlotError> {
         20.0,
         fit_size(font, &m.title, TITLE_SIZE * 0.8, 9.0, width - 24.0),
         HAlign::Center,
-        super::VAlign::Middle,
+        crate::text::VAlign::Middle,
     )));
     for (c, name) in m.columns.iter().enumerate() {
         let x = left + CELL_W * (c as f64 + 0.5);
@@ -72,7 +71,7 @@ pub fn matrix_png(path: &Path, m: &MatrixPicture) -> Result<(), PlotError> {
             top - 14.0,
             fit_size(font, name, LABEL_SIZE, 9.0, CELL_W - 8.0),
             HAlign::Center,
-            super::VAlign::Middle,
+            crate::text::VAlign::Middle,
         )));
     }
     for (r, name) in m.rows.iter().enumerate() {
@@ -83,7 +82,7 @@ pub fn matrix_png(path: &Path, m: &MatrixPicture) -> Result<(), PlotError> {
             y0 + CELL_H / 2.0,
             LABEL_SIZE,
             HAlign::Right,
-            super::VAlign::Middle,
+            crate::text::VAlign::Middle,
         )));
         for c in 0..m.columns.len() {
             let v = m.values.get(r).and_then(|row| row.get(c)).copied();
@@ -110,7 +109,7 @@ pub fn matrix_png(path: &Path, m: &MatrixPicture) -> Result<(), PlotError> {
                         y0 + CELL_H / 2.0,
                         TICK_SIZE,
                         HAlign::Center,
-                        super::VAlign::Middle,
+                        crate::text::VAlign::Middle,
                     )
                     .color(text_on(bg)),
                 ));
@@ -142,7 +141,7 @@ pub fn matrix_png(path: &Path, m: &MatrixPicture) -> Result<(), PlotError> {
             height - 18.0,
             fit_size(font, note, TICK_SIZE * 0.9, 8.0, width - 24.0),
             HAlign::Center,
-            super::VAlign::Middle,
+            crate::text::VAlign::Middle,
         )
         .color(AXIS),
     ));

@@ -5,8 +5,10 @@
 
 use std::path::Path;
 
-use super::scene::{self, Shape};
-use super::{fit_size, fonts, text_on, viridis, HAlign, Label, PlotError, VAlign, AXIS, ROCK};
+use crate::error::PlotError;
+use crate::scene::{self, Shape};
+use crate::style::{text_on, viridis, AXIS, ROCK};
+use crate::text::{fit_size, fonts, HAlign, Label, VAlign};
 
 /// One step of an episode.
 #[derive(Debug, Clone)]

@@ -8,11 +8,12 @@
 
 use std::path::Path;
 
-use super::scene::{self, Shape};
-use super::{
-    fonts, format_steps, nice_range, nice_ticks, text_width, HAlign, Label, PlotError, Rgb, VAlign,
-    AXIS, GRID, LABEL_SIZE, TICK_SIZE, TITLE_SIZE,
-};
+use crate::curve::{format_steps, nice_range};
+use crate::error::PlotError;
+use crate::scene::{self, Shape};
+use crate::style::{Rgb, AXIS, GRID, LABEL_SIZE, TICK_SIZE, TITLE_SIZE};
+use crate::text::{fonts, text_width, HAlign, Label, VAlign};
+use crate::ticks::nice_ticks;
 
 /// One arm's curve: mean and standard deviation at each x (NaN = no value there).
 #[derive(Debug, Clone)]
@@ -198,7 +199,7 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         c.title.clone(),
         f64::from(WIDTH) / 2.0,
         24.0,
-        super::fit_size(font, &c.title, TITLE_SIZE, 9.0, f64::from(WIDTH) - 28.0),
+        crate::text::fit_size(font, &c.title, TITLE_SIZE, 9.0, f64::from(WIDTH) - 28.0),
         HAlign::Center,
         VAlign::Middle,
     )));
@@ -264,7 +265,7 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             c.y_label.clone(),
             24.0,
             (top + bottom) / 2.0,
-            super::fit_size(font, &c.y_label, LABEL_SIZE, 9.0, bottom - top),
+            crate::text::fit_size(font, &c.y_label, LABEL_SIZE, 9.0, bottom - top),
             HAlign::Center,
             VAlign::Middle,
         )
