@@ -3,6 +3,9 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use fulcrum_run::child::ChildRequest;
+use fulcrum_run::plan::TrainRequest;
+use fulcrum_run::BadRequest;
 
 /// fulcrum: tool worlds, exact object empowerment, and PPO agents that learn to use tools.
 #[derive(Debug, Parser)]
@@ -625,4 +628,121 @@ pub struct ChildArgs {
     /// namespace is not the run's.
     #[arg(long)]
     pub run_tag: Option<String>,
+}
+
+impl TrainArgs {
+    /// The run this command line asks for, with the mistakes only flags can make
+    /// (contradicting flags, a setting that a resume cannot change) refused, each
+    /// naming its flags.
+    pub fn request(&self) -> Result<TrainRequest, BadRequest> {
+        let a = self;
+        let refuse = |m: String| Err(BadRequest(m));
+        if a.no_empowerment && a.intrinsic.as_deref().is_some_and(|f| f != "none") {
+            return refuse(format!(
+                "--no-empowerment and --intrinsic {} contradict each other: choose one",
+                a.intrinsic.as_deref().unwrap_or_default()
+            ));
+        }
+        let none = a.no_empowerment || a.intrinsic.as_deref() == Some("none");
+        if none && a.beta.is_some() {
+            return refuse(
+                "--beta and --no-empowerment (or --intrinsic none) contradict each other: choose one"
+                    .into(),
+            );
+        }
+        if let Some(dir) = &a.resume {
+            let changed: Vec<&str> = [
+                (a.beta.is_some(), "--beta"),
+                (a.no_empowerment, "--no-empowerment"),
+                (a.no_action_mask, "--no-action-mask"),
+                (a.intrinsic_value_head, "--intrinsic-value-head"),
+                (a.gamma_int.is_some(), "--gamma-int"),
+                (a.intrinsic.is_some(), "--intrinsic"),
+                (a.horizon_mode.is_some(), "--horizon-mode"),
+                (a.seed.is_some(), "--seed"),
+                (a.actors.is_some(), "--actors"),
+                (a.envs_per_actor.is_some(), "--envs-per-actor"),
+                (a.steps_per_chunk.is_some(), "--steps-per-chunk"),
+                (a.hidden.is_some(), "--hidden"),
+                (a.tool.is_some(), "--tool"),
+                (a.objects.is_some(), "--objects"),
+                (a.horizon_unequipped.is_some(), "--horizon-unequipped"),
+                (a.horizon_equipped.is_some(), "--horizon-equipped"),
+                (a.lr.is_some(), "--lr"),
+                (a.epochs.is_some(), "--epochs"),
+                (a.minibatches.is_some(), "--minibatches"),
+                (a.ppo_preset.is_some(), "--ppo-preset"),
+            ]
+            .into_iter()
+            .filter_map(|(c, n)| c.then_some(n))
+            .collect();
+            if !changed.is_empty() {
+                return refuse(format!(
+                    "--resume continues a run with the settings in {}; {} cannot be changed (start a new run instead)",
+                    dir.join("config.toml").display(),
+                    changed.join(", ")
+                ));
+            }
+        }
+        Ok(TrainRequest {
+            world: a.world.clone(),
+            beta: a.beta,
+            intrinsic: if a.no_empowerment {
+                Some("none".into())
+            } else {
+                a.intrinsic.clone()
+            },
+            horizon_mode: a.horizon_mode.clone(),
+            intrinsic_value_head: a.intrinsic_value_head,
+            gamma_int: a.gamma_int,
+            action_mask: !a.no_action_mask,
+            seed: a.seed,
+            steps: a.steps,
+            out: a.out.clone(),
+            resume: a.resume.clone(),
+            actors: a.actors,
+            envs_per_actor: a.envs_per_actor,
+            steps_per_chunk: a.steps_per_chunk,
+            learner_threads: a.learner_threads,
+            hidden: a.hidden,
+            tool: a.tool.clone(),
+            objects: a.objects.clone(),
+            horizon_unequipped: a.horizon_unequipped,
+            horizon_equipped: a.horizon_equipped,
+            max_policy_lag: a.max_policy_lag,
+            checkpoint_every: a.checkpoint_every,
+            lr: a.lr,
+            epochs: a.epochs,
+            minibatches: a.minibatches,
+            ppo_preset: a.ppo_preset.clone(),
+            remote: a.listen.is_some(),
+            stall_timeout: a.stall_timeout,
+        })
+    }
+}
+
+impl ZenohArgs {
+    /// The bridge's zenoh settings.
+    #[cfg(feature = "multihost")]
+    pub fn options(&self) -> fulcrum_bridge::ZenohOptions {
+        fulcrum_bridge::ZenohOptions {
+            session_timeout: self.session_timeout,
+            zenoh_config: self.zenoh_config.clone(),
+        }
+    }
+}
+
+impl ChildArgs {
+    /// What the supervisor asked the child process for.
+    pub fn request(&self) -> ChildRequest {
+        ChildRequest {
+            run: self.run.clone(),
+            namespace: self.namespace.clone(),
+            parent: self.parent,
+            index: self.index,
+            incarnation: self.incarnation,
+            stop_after_updates: self.stop_after_updates,
+            run_tag: self.run_tag.clone(),
+        }
+    }
 }

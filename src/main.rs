@@ -36,7 +36,7 @@ fn main() -> ExitCode {
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let code = if e.is::<commands::train::Interrupted>() {
+            let code = if e.is::<fulcrum_run::Interrupted>() {
                 130
             } else if commands::is_bad_input(&e) {
                 2

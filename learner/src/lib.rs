@@ -5,8 +5,7 @@
 //! actor-critic network whose first layer sums one embedding row per (cell, glyph), with
 //! an optional second value head for the intrinsic return ([`net`]), with GAE that tells
 //! truncation from termination ([`gae`]). [`local`] trains in one process (the reference
-//! loop that the multi-process training of `fulcrum train` distributes); [`stats`] is
-//! what `fulcrum experiment` reports.
+//! loop that the multi-process training of `fulcrum train` distributes).
 
 /// Checkpoints: weights, optimiser state, counters, written atomically.
 pub mod checkpoint;
@@ -24,9 +23,7 @@ pub mod net;
 pub mod ppo;
 /// The learner process of `fulcrum train`.
 pub mod run;
-/// Aggregating the learning curves of several runs (means, bands, Welch's t-test) and
-/// comparing times to solve (IQM, bootstrap intervals, Fisher's exact, log-rank,
-/// Kaplan-Meier).
-pub mod stats;
+/// The running scale of the intrinsic reward.
+pub mod running_std;
 
 pub use gae::{gae, Rollout};

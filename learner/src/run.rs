@@ -116,15 +116,6 @@ pub struct MetricsRow {
 }
 
 impl MetricsRow {
-    /// The row as a point of a learning curve ([`crate::stats`]).
-    pub fn point(&self) -> crate::stats::Point {
-        crate::stats::Point {
-            steps: self.env_steps as f64,
-            episodes: self.episodes as f64,
-            success: self.success_rate,
-            ret: self.extrinsic_return,
-        }
-    }
     /// The CSV line (no newline).
     pub fn csv(&self) -> String {
         let f = |x: f64| {
@@ -298,7 +289,7 @@ struct Counters {
     /// The KL penalty's coefficient now (it adapts after each update).
     kl_coef: f32,
     /// The intrinsic rewards' running scale (intrinsic value head).
-    int_std: crate::stats::RunningStd,
+    int_std: crate::running_std::RunningStd,
 }
 
 fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
@@ -342,7 +333,7 @@ pub fn run_learner(
             ctr.kl_coef = k as f32;
         }
         let f = |k: &str| extra.floats.get(k).copied().unwrap_or(0.0);
-        ctr.int_std = crate::stats::RunningStd {
+        ctr.int_std = crate::running_std::RunningStd {
             count: f("int_std_count"),
             mean: f("int_std_mean"),
             m2: f("int_std_m2"),

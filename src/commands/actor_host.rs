@@ -23,9 +23,9 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 
 use crate::cli::ActorHostArgs;
-use crate::commands::bad;
-use crate::commands::bridge::{actor_id, default_dir, hostname, Joined};
-use crate::commands::train::{cores, install_signal_handlers, signal, stop_children, STOP};
+use fulcrum_bridge::{actor_id, default_dir, Joined};
+use fulcrum_run::bad;
+use fulcrum_run::process::{cores, hostname, install_signal_handlers, signal, stop_children, STOP};
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {

@@ -136,7 +136,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         #[cfg(not(feature = "multihost"))]
         {
             let _ = addr;
-            return super::bad(super::NO_MULTIHOST.replace("{}", "bench --remote"));
+            return fulcrum_run::bad(super::NO_MULTIHOST.replace("{}", "bench --remote"));
         }
     } else if a.scaling {
         scaling::run(&a.plots, a.max_states, &mut figs)?;
@@ -928,7 +928,7 @@ fn train_sps(
 fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
     // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
-    let batch = (super::train::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
     let steps = if quick { 16 } else { 100 } * batch;
     let (mut sps, cfg) = train_sps(&["exp1-tree", "--steps", &steps.to_string()], &dir)?;
     sps.sort_by(f64::total_cmp);
@@ -954,7 +954,7 @@ fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
 /// and the env steps by then. The run is then stopped (SIGINT, as a user would). `None`
 /// when the budget ends first.
 fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>> {
-    use fulcrum_learner::stats::{smooth, steps_to, Point};
+    use fulcrum_run::stats::{smooth, steps_to, Point};
     let _ = std::fs::remove_dir_all(dir);
     let t0 = Instant::now();
     let mut child = train_command(args, dir)?
@@ -964,7 +964,7 @@ fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>
     let solved = loop {
         let done = child.try_wait()?;
         let rows = fulcrum_learner::run::read_metrics(&metrics).unwrap_or_default();
-        let pts: Vec<Point> = rows.iter().map(|r| r.point()).collect();
+        let pts: Vec<Point> = rows.iter().map(Point::from).collect();
         if let Some(steps) = steps_to(&smooth(&pts, 10), 0.9) {
             break Some((t0.elapsed().as_secs_f64(), steps));
         }
@@ -989,7 +989,7 @@ fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>
 fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-solve-{}", std::process::id()));
     let budget = 499_712u64;
-    let batch = (super::train::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
     let steps = budget.div_ceil(batch) * batch;
     let (mut secs, mut env) = (Vec::new(), Vec::new());
     let mut solved = 0;

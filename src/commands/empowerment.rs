@@ -9,7 +9,10 @@ use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
-use crate::commands::{bad, engine, holding_mask, object_set, objects_or_default, tool_sel, world};
+use fulcrum_run::select::{
+    engine, holding_mask, load_world as world, object_set, objects_or_default, tool_sel,
+};
+use fulcrum_run::{bad, BadRequest};
 
 /// Run an `empowerment` subcommand.
 pub fn run(cmd: EmpCmd) -> Result<()> {
@@ -448,7 +451,7 @@ fn query(a: &QueryArgs) -> Result<()> {
         (Some(s), _) => vec![("--state".to_string(), s.clone())],
         (None, Some(p)) => {
             let text = std::fs::read_to_string(p).map_err(|e| {
-                crate::commands::BadInput(format!("cannot read --states-file {}: {e}", p.display()))
+                BadRequest(format!("cannot read --states-file {}: {e}", p.display()))
             })?;
             text.lines()
                 .enumerate()
@@ -463,7 +466,7 @@ fn query(a: &QueryArgs) -> Result<()> {
     for (place, text) in &lines {
         let s = w
             .parse_state(text)
-            .map_err(|e| crate::commands::BadInput(format!("{place}: {e}")))?;
+            .map_err(|e| BadRequest(format!("{place}: {e}")))?;
         states.push(s);
     }
     if a.service {
@@ -478,7 +481,7 @@ fn query(a: &QueryArgs) -> Result<()> {
         let h = horizon_for(&w, &a.channel, r.tool, s);
         let id =
             r.e.state_id(s)
-                .map_err(|e| crate::commands::BadInput(format!("{place}: {e}")))?;
+                .map_err(|e| BadRequest(format!("{place}: {e}")))?;
         let v = match method {
             Method::Dp => {
                 if !tables.iter().any(|t| t.0 == h) {

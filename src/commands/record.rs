@@ -8,23 +8,14 @@
 //! not-held horizon by the inventory) for the agent standing there, with the inventory
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
-use std::path::{Path, PathBuf};
-
-use anyhow::{Context, Result};
-use candle_core::Device;
-use fulcrum_actors::policy::Policy;
-use fulcrum_empowerment::{Method, ToolSel};
-use fulcrum_learner::checkpoint;
+use anyhow::Result;
 use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::net::Net;
-use fulcrum_learner::ppo::Adam;
 use fulcrum_learner::run::RunPaths;
-use fulcrum_shared::World;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
+use fulcrum_run::record::record;
+use fulcrum_run::select::load_world;
+use fulcrum_run::{bad, BadRequest};
 
 use crate::cli::RecordArgs;
-use crate::commands::{bad, engine, objects_or_default, tool_sel, world};
 
 /// `fulcrum record`.
 pub fn run(a: &RecordArgs) -> Result<()> {
@@ -35,8 +26,8 @@ pub fn run(a: &RecordArgs) -> Result<()> {
             a.run.display()
         ));
     }
-    let cfg = RunConfig::load(&paths.config()).map_err(super::BadInput)?;
-    let w = world(&cfg.world)?;
+    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let w = load_world(&cfg.world)?;
     if a.episodes == 0 || a.episodes > 100 {
         return bad(format!("--episodes {} must be 1 to 100", a.episodes));
     }
@@ -52,122 +43,4 @@ pub fn run(a: &RecordArgs) -> Result<()> {
         println!("{}", p.display());
     }
     Ok(())
-}
-
-/// Plays `episodes` episodes of the run's policy and draws each as
-/// `out/episode-<k>.png`; returns the paths.
-pub fn record(
-    paths: &RunPaths,
-    cfg: &RunConfig,
-    w: &World,
-    episodes: usize,
-    seed: u64,
-    out: &Path,
-) -> Result<Vec<PathBuf>> {
-    let ckpt = paths.checkpoint();
-    if !ckpt.exists() {
-        return bad(format!(
-            "{}: no checkpoint yet, so no policy to record",
-            paths.dir.display()
-        ));
-    }
-    let shape = cfg.shape(w);
-    let net = Net::new(shape, cfg.seed, &Device::Cpu)?;
-    let mut adam = Adam::new(&net)?;
-    checkpoint::load(&ckpt, &net, &mut adam)?;
-    let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
-    anyhow::ensure!(
-        policy.set(&net.flat()?),
-        "the checkpoint's weights do not fit the network"
-    );
-
-    // E for every state, by the run's channel.
-    let e = engine(w)?;
-    let set = objects_or_default(w, (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()))?;
-    let tool: ToolSel = tool_sel(
-        w,
-        &e,
-        (cfg.tool != "default").then_some(cfg.tool.as_str()),
-        &set,
-    )?;
-    let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
-    let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;
-    let value = |s: &fulcrum_shared::State| -> Option<f64> {
-        let id = e.space.id(s)? as usize;
-        Some(if tool.held(s) { ve[id] } else { vu[id] })
-    };
-
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let spec = w.obs_spec();
-    let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let (mut act, mut lp, mut v) = ([0u8], [0.0f32], [0.0f32]);
-    let mut written = Vec::new();
-    for k in 1..=episodes {
-        let mut ep = w.reset();
-        let mut frames = Vec::new();
-        let mut caption = "t=0".to_string();
-        let (mut ret, mut e_sum) = (0.0f32, 0.0f64);
-        loop {
-            let s = ep.state;
-            let here = value(&s).unwrap_or(0.0);
-            frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
-            w.observe(&s, &mut g, &mut f);
-            policy.act(&g, &f, &mut rng, &mut act, &mut lp, &mut v);
-            let o = w.env_step(&mut ep, act[0]);
-            ret += o.reward;
-            e_sum += value(&ep.state).unwrap_or(0.0);
-            caption = format!("t={} {}", ep.t, w.action_name(act[0]));
-            if o.terminated || o.truncated {
-                let s = ep.state;
-                let here = value(&s).unwrap_or(0.0);
-                frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
-                let outcome = if o.terminated {
-                    "task done"
-                } else {
-                    "time limit"
-                };
-                let strip = fulcrum_plot::Strip {
-                    title: format!(
-                        "{}: episode {k} of the policy (seed {seed}), {} steps, {outcome}, return {ret}, E summed {e_sum:.1} bits",
-                        w.name, ep.t
-                    ),
-                    width: w.width,
-                    height: w.height,
-                    frames,
-                };
-                let path = out.join(format!("episode-{k}.png"));
-                fulcrum_plot::episode_png(&path, &strip)
-                    .with_context(|| format!("cannot draw {}", path.display()))?;
-                written.push(path);
-                break;
-            }
-        }
-    }
-    Ok(written)
-}
-
-/// One frame: the glyphs of `s` and, per cell, E for the agent standing there.
-fn frame(
-    w: &World,
-    s: &fulcrum_shared::State,
-    value: &dyn Fn(&fulcrum_shared::State) -> Option<f64>,
-    caption: String,
-) -> fulcrum_plot::Frame {
-    let mut glyphs = Vec::with_capacity(w.width * w.height);
-    let mut values = Vec::with_capacity(w.width * w.height);
-    for y in 0..w.height {
-        for x in 0..w.width {
-            glyphs.push(w.glyph_at(s, x, y));
-            let mut t = *s;
-            t.x = x as u8;
-            t.y = y as u8;
-            values.push(value(&t));
-        }
-    }
-    fulcrum_plot::Frame {
-        caption,
-        glyphs,
-        values,
-    }
 }

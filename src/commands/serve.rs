@@ -9,7 +9,8 @@ use fulcrum_empowerment::{set_name, Method, ToolSel};
 use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
-use crate::commands::{bad, engine, objects_or_default, tool_sel, world};
+use fulcrum_run::bad;
+use fulcrum_run::select::{engine, load_world as world, objects_or_default, tool_sel};
 
 /// Run the service until SIGINT or SIGTERM.
 pub fn run(a: &ServeArgs) -> Result<()> {
@@ -96,7 +97,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
 /// every count the service answers (a test of counts shared between processes).
 pub fn visit_process(ns: &str, world: &str, state: &str, times: usize) -> Result<()> {
     use fulcrum_empowerment::service::{Ask, Client};
-    let w = super::world(world)?;
+    let w = fulcrum_run::select::load_world(world)?;
     let s = w.parse_state(state)?;
     let mut c = Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
     let mut out = String::new();

@@ -8,7 +8,7 @@ use fulcrum_shared::{parse_world, ObjectSet, Task, ToolChoice, World};
 use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
-use crate::commands::{engine, world};
+use fulcrum_run::select::{engine, load_world as world};
 use fulcrum_shared::fsio::write_atomic;
 
 /// Run a `world` subcommand.

@@ -18,23 +18,22 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::{ensure, Context, Result};
+use fulcrum_bridge::zenoh::handlers::FifoChannel;
+use fulcrum_bridge::zenoh::qos::{CongestionControl, Priority};
+use fulcrum_bridge::zenoh::Wait;
 use fulcrum_empowerment::{Engine, Limits};
 use fulcrum_shared::load_world;
 use fulcrum_shared::msg::{kind, EmpRequest, EmpResponse};
 use fulcrum_shared::traj::ChunkHeader;
-use zenoh::handlers::FifoChannel;
-use zenoh::qos::{CongestionControl, Priority};
-use zenoh::Wait;
 
 use super::{percentile, sample_states, Figure, ServeChild};
-use crate::cli::ZenohArgs;
-use crate::commands::bridge::{locator, open_session, serve_lookups, BridgeStats, Forwarder};
-use crate::commands::train::{install_signal_handlers, STOP};
+use fulcrum_bridge::{locator, open_session, serve_lookups, BridgeStats, Forwarder, ZenohOptions};
+use fulcrum_run::process::{install_signal_handlers, STOP};
 
 const RUN: &str = "bench";
 
-fn zargs() -> ZenohArgs {
-    ZenohArgs {
+fn zargs() -> ZenohOptions {
+    ZenohOptions {
         session_timeout: 10.0,
         zenoh_config: None,
     }
@@ -110,7 +109,7 @@ pub fn peer(listen: &str) -> Result<()> {
 }
 
 /// The peer's counters: chunks and bytes received so far.
-fn peer_stats(session: &zenoh::Session) -> Option<(u64, u64)> {
+fn peer_stats(session: &fulcrum_bridge::zenoh::Session) -> Option<(u64, u64)> {
     let replies = session
         .get(format!("fulcrum/{RUN}/stats"))
         .timeout(Duration::from_secs(2))

@@ -43,7 +43,7 @@ pub fn run(plots: &Path, max_states: Option<u64>, figs: &mut Vec<Figure>) -> Res
 
 fn median_std(mut v: Vec<f64>) -> (f64, f64) {
     v.sort_by(f64::total_cmp);
-    let (_, s) = fulcrum_learner::stats::mean_std(&v);
+    let (_, s) = fulcrum_run::stats::mean_std(&v);
     (v[v.len() / 2], s)
 }
 

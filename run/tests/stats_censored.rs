@@ -4,7 +4,7 @@
 //! (scipy 1.17 / numpy 2.4; lifelines 0.30 agrees on the log-rank and Kaplan-Meier
 //! values) or counted by hand in that script's comments.
 
-use fulcrum_learner::stats::{bootstrap_ci, erfc, fisher_exact, iqm, log_rank, solved_by};
+use fulcrum_run::stats::{bootstrap_ci, erfc, fisher_exact, iqm, log_rank, solved_by};
 
 fn close(a: f64, b: f64, rel: f64) -> bool {
     (a - b).abs() <= rel * b.abs().max(f64::MIN_POSITIVE)
@@ -188,7 +188,7 @@ fn solved_by_is_kaplan_meier() {
 /// deviations 9 + 4 + 1 + 0 + 36 = 50, so the population std is sqrt(50 / 5) = sqrt(10).
 #[test]
 fn running_std_merges_batches_exactly() {
-    use fulcrum_learner::stats::RunningStd;
+    use fulcrum_learner::running_std::RunningStd;
     let mut r = RunningStd::default();
     assert_eq!(r.std(), 0.0);
     r.update(&[1.0, 2.0]);

@@ -68,6 +68,17 @@ pub struct Point {
     pub ret: f64,
 }
 
+impl From<&fulcrum_learner::run::MetricsRow> for Point {
+    fn from(r: &fulcrum_learner::run::MetricsRow) -> Point {
+        Point {
+            steps: r.env_steps as f64,
+            episodes: r.episodes as f64,
+            success: r.success_rate,
+            ret: r.extrinsic_return,
+        }
+    }
+}
+
 /// Episode-pooled success rate and mean return over a trailing window of `w` updates
 /// (w >= 1; `w = 1` is the raw series). Returns `(steps, success, return)` per update.
 pub fn smooth(points: &[Point], w: usize) -> Vec<(f64, f64, f64)> {
@@ -565,42 +576,4 @@ pub fn solved_by(times: &[(f64, bool)], grid: &[f64]) -> Vec<f64> {
             }
         })
         .collect()
-}
-
-/// A running mean and variance over every value seen so far (Chan et al.'s merge of
-/// batch moments into the running ones), for the intrinsic reward's scale.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct RunningStd {
-    /// Values seen.
-    pub count: f64,
-    /// Their mean.
-    pub mean: f64,
-    /// Sum of squared deviations from the mean.
-    pub m2: f64,
-}
-
-impl RunningStd {
-    /// Merge a batch of values.
-    pub fn update(&mut self, xs: &[f32]) {
-        if xs.is_empty() {
-            return;
-        }
-        let n = xs.len() as f64;
-        let mean = xs.iter().map(|&x| x as f64).sum::<f64>() / n;
-        let m2: f64 = xs.iter().map(|&x| (x as f64 - mean).powi(2)).sum();
-        let total = self.count + n;
-        let delta = mean - self.mean;
-        self.mean += delta * n / total;
-        self.m2 += m2 + delta * delta * self.count * n / total;
-        self.count = total;
-    }
-
-    /// The population standard deviation (0 before any value).
-    pub fn std(&self) -> f64 {
-        if self.count > 0.0 {
-            (self.m2 / self.count).sqrt()
-        } else {
-            0.0
-        }
-    }
 }

@@ -2,7 +2,7 @@
 //! deviation, steps to threshold and area are counted by hand below, and Welch's test
 //! against closed forms of Student's t distribution.
 
-use fulcrum_learner::stats::{
+use fulcrum_run::stats::{
     area, band, final_rates, grid, incomplete_beta, interpolate, ln_gamma, mean_std, smooth,
     steps_to, welch, Point,
 };

@@ -1,0 +1,165 @@
+//! Joining a run: the hello a host is answered with, the hosts file of the learner's
+//! side, and where an actor host's actors live.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use fulcrum_run::bad;
+use fulcrum_run::process::STOP;
+use fulcrum_shared::traj::HOST_STRIDE;
+use serde::{Deserialize, Serialize};
+use zenoh::Wait;
+
+/// What a joining host learns (the reply to `fulcrum/hello`), as TOML.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct Hello {
+    /// The run's namespace on the learner's host (the key expressions' `<run>`).
+    pub run: String,
+    /// The run's tag ([`traj::run_tag`] of `run`): chunks carry it.
+    pub run_tag: u64,
+    /// The run's id (its directory name by default).
+    pub run_id: String,
+    /// The world's text; its hash is the run's world hash.
+    pub world_source: String,
+    /// [`World::content_hash`], hex.
+    pub world_hash: String,
+    /// The world's name.
+    pub world_name: String,
+    /// The run's `config.toml`.
+    pub config: String,
+    /// This host's index: its actors are `index * HOST_STRIDE + j`.
+    pub host: u32,
+}
+
+/// Whether a host name can be used in a key expression and a CSV field.
+pub(crate) fn valid_host_name(n: &str) -> bool {
+    !n.is_empty()
+        && n.len() <= 64
+        && n.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_' || b == b'.')
+}
+
+/// `name -> (index, address)` from `hosts.txt` (`index name address` lines).
+pub(crate) fn read_hosts(path: &Path) -> BTreeMap<String, (u32, String)> {
+    let mut out = BTreeMap::new();
+    if let Ok(text) = std::fs::read_to_string(path) {
+        for line in text.lines() {
+            let w: Vec<&str> = line.split_whitespace().collect();
+            if let [i, name, rest @ ..] = w.as_slice() {
+                if let Ok(i) = i.parse::<u32>() {
+                    out.insert(name.to_string(), (i, rest.join(" ")));
+                }
+            }
+        }
+    }
+    out
+}
+
+pub(crate) fn write_hosts(path: &Path, hosts: &BTreeMap<String, (u32, String)>) -> Result<()> {
+    let mut rows: Vec<(u32, &String, &String)> =
+        hosts.iter().map(|(n, (i, a))| (*i, n, a)).collect();
+    rows.sort();
+    let text: String = rows
+        .iter()
+        .map(|(i, n, a)| format!("{i} {n} {a}\n"))
+        .collect();
+    write_atomic(path, text.as_bytes())
+}
+
+/// Writes a file atomically, the error naming it.
+pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    fulcrum_shared::fsio::write_atomic(path, bytes)
+        .with_context(|| format!("cannot write {}", path.display()))
+}
+
+/// What an actor host needs to start its actors (printed by the bridge when ready).
+#[derive(Debug, Clone)]
+pub struct Joined {
+    /// The namespace of this host's shared-memory services.
+    pub local_ns: String,
+    /// The run's tag, for the actors' chunks.
+    pub run_tag: u64,
+    /// This host's index.
+    pub host: u32,
+}
+
+impl Joined {
+    /// The `ready` line the bridge prints.
+    pub fn line(&self) -> String {
+        format!(
+            "fulcrum bridge: ready {} {:016x} {}",
+            self.local_ns, self.run_tag, self.host
+        )
+    }
+
+    /// Parse a `ready` line.
+    pub fn parse(line: &str) -> Option<Joined> {
+        let rest = line.strip_prefix("fulcrum bridge: ready ")?;
+        let mut w = rest.split_whitespace();
+        Some(Joined {
+            local_ns: w.next()?.to_string(),
+            run_tag: u64::from_str_radix(w.next()?, 16).ok()?,
+            host: w.next()?.parse().ok()?,
+        })
+    }
+}
+
+/// Ask the learner's host to join, until it answers or `give_up` passes.
+pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) -> Result<Hello> {
+    let t0 = Instant::now();
+    let mut said = false;
+    loop {
+        if STOP.load(Ordering::Relaxed) {
+            anyhow::bail!("stopped before the learner answered");
+        }
+        let replies = session
+            .get(format!(
+                "fulcrum/hello?name={name};from={}",
+                fulcrum_run::process::hostname()
+            ))
+            .timeout(Duration::from_secs(2))
+            .wait()
+            .map_err(|e| anyhow::anyhow!("zenoh get: {e}"))?;
+        if let Ok(reply) = replies.recv() {
+            match reply.result() {
+                Ok(sample) => {
+                    let text = sample
+                        .payload()
+                        .try_to_string()
+                        .unwrap_or_default()
+                        .to_string();
+                    return toml::from_str(&text).map_err(|e| {
+                        anyhow::anyhow!(
+                            "the learner's host sent a join reply that does not parse: {e}"
+                        )
+                    });
+                }
+                Err(e) => {
+                    let why = e.payload().try_to_string().unwrap_or_default().to_string();
+                    return bad(format!("the learner's host refused this host: {why}"));
+                }
+            }
+        }
+        if t0.elapsed().as_secs_f64() > give_up {
+            anyhow::bail!("no learner answered at {endpoint} within {give_up} s");
+        }
+        if !said {
+            eprintln!("fulcrum bridge: waiting for the learner at {endpoint}");
+            said = true;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    }
+}
+
+/// The actor id of actor `j` of host `host`.
+pub fn actor_id(host: u32, j: usize) -> u32 {
+    host * HOST_STRIDE + j as u32
+}
+
+/// Where an actor host works by default.
+pub fn default_dir(name: &str) -> PathBuf {
+    PathBuf::from("runs").join(format!("remote-{name}"))
+}

@@ -1,0 +1,104 @@
+//! The hidden child processes of a run, as the supervisor starts them: the learner
+//! and the actors. Each dies with the supervisor, stops on SIGINT/SIGTERM, and checks
+//! that the world it loads is the run's.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::sync::atomic::Ordering;
+
+use anyhow::Result;
+use fulcrum_learner::config::RunConfig;
+use fulcrum_learner::run::{run_learner, LearnerExit, RunPaths};
+use fulcrum_shared::World;
+
+use crate::error::{bad, BadRequest};
+use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
+use crate::select::load_world;
+use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
+
+/// What the supervisor tells a child process.
+#[derive(Debug, Clone)]
+pub struct ChildRequest {
+    /// The run directory.
+    pub run: PathBuf,
+    /// The run's iceoryx2 namespace.
+    pub namespace: String,
+    /// The supervisor's pid: the child dies with it.
+    pub parent: u32,
+    /// The actor's index.
+    pub index: u32,
+    /// How often this actor has been restarted.
+    pub incarnation: u32,
+    /// The learner stops after this many updates (exit code 3).
+    pub stop_after_updates: Option<u64>,
+    /// The run's tag, hex (actors on other hosts).
+    pub run_tag: Option<String>,
+}
+
+fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
+    die_with_parent(a.parent);
+    install_signal_handlers();
+    let paths = RunPaths { dir: a.run.clone() };
+    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let w = load_world(&cfg.world)?;
+    if format!("{:016x}", w.content_hash()) != cfg.world_hash {
+        return bad(format!(
+            "the world '{}' differs from the run's (hash {})",
+            cfg.world, cfg.world_hash
+        ));
+    }
+    Ok((cfg, w, paths))
+}
+
+/// The learner process: trains until the run's last update, a stop request or a
+/// signal; exits 3 when paused on request, 130 when stopped by a signal.
+pub fn learner_main(a: &ChildRequest) -> Result<()> {
+    let (cfg, w, paths) = child_setup(a)?;
+    let stop_after = a.stop_after_updates;
+    let mut first: Option<u64> = None;
+    let mut paused = false;
+    let exit = run_learner(&w, &cfg, &paths, &a.namespace, &STOP, |row, updates| {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(
+            out,
+            "progress {} {} {} {:.3} {:.3} {:.0}",
+            row.update, updates, row.env_steps, row.success_rate, row.extrinsic_return, row.sps
+        );
+        let _ = out.flush();
+        let f = *first.get_or_insert(row.update - 1);
+        if stop_after.is_some_and(|n| row.update - f >= n) {
+            paused = true;
+            STOP.store(true, Ordering::Relaxed);
+        }
+    })?;
+    match exit {
+        LearnerExit::Finished => Ok(()),
+        LearnerExit::Interrupted if paused && !signalled() => std::process::exit(EXIT_PAUSED),
+        LearnerExit::Interrupted => std::process::exit(EXIT_INTERRUPTED),
+    }
+}
+
+/// An actor process.
+pub fn actor_main(a: &ChildRequest) -> Result<()> {
+    let (cfg, w, paths) = child_setup(a)?;
+    let run_tag = match &a.run_tag {
+        Some(t) => match u64::from_str_radix(t, 16) {
+            Ok(v) => Some(v),
+            Err(_) => return bad(format!("the run tag '{t}' is not a hex number")),
+        },
+        None => None,
+    };
+    fulcrum_actors::run_actor(
+        &w,
+        &cfg,
+        &paths.checkpoint(),
+        &a.namespace,
+        run_tag,
+        fulcrum_actors::ActorId {
+            index: a.index,
+            incarnation: a.incarnation,
+        },
+        &STOP,
+    )?;
+    Ok(())
+}

@@ -1,0 +1,36 @@
+//! fulcrum-run: training runs and experiments of many runs, as the `fulcrum` binary
+//! asks for them.
+//!
+//! A request is planned into a checked configuration and a run directory ([`plan`]),
+//! then the supervisor ([`supervisor`]) starts the empowerment service, the learner,
+//! the actors (and a bridge to other hosts) as child processes ([`child`]) and waits on
+//! their events until the run ends. An experiment ([`experiment`]) schedules many such
+//! runs over the cores and aggregates their curves with [`stats`].
+//!
+//! | module | what it owns |
+//! |---|---|
+//! | [`plan`] | a request -> a checked `RunConfig`, its world and run directory |
+//! | [`select`] | reading a world, object set, tool or inventory named in a request |
+//! | [`supervisor`] | the run's child processes, restarts, progress, shutdown |
+//! | [`child`] | the learner and actor processes as the supervisor starts them |
+//! | [`process`] | the one stop flag, signals, die-with-parent, spawn-until-ready |
+//! | [`progress`] | a bar on a terminal, a line now and then elsewhere |
+//! | [`curve`] | the learning curve drawn when a run ends |
+//! | [`record`] | episodes of a run's policy as strips of frames |
+//! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
+//! | [`stats`] | curves over seeds, censored times to solve, tests |
+//! | [`error`] | bad requests and interruptions (the binary's exit codes 2 and 130) |
+
+pub mod child;
+pub mod curve;
+pub mod error;
+pub mod experiment;
+pub mod plan;
+pub mod process;
+pub mod progress;
+pub mod record;
+pub mod select;
+pub mod stats;
+pub mod supervisor;
+
+pub use error::{bad, BadRequest, Interrupted};

@@ -1,0 +1,332 @@
+//! Planning a training run: a request (what the user asked for) becomes a checked
+//! [`RunConfig`], its world and its run directory, before any process starts.
+//!
+//! A new run gets its settings from the request, the world's `[empowerment]` table and
+//! the machine (actors default to one per core but one); a resumed run keeps the
+//! settings in its `config.toml` but for the few that may change (length,
+//! checkpointing, threads, policy lag, remote actors), and is refused if its world
+//! changed or its checkpoint does not load.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use fulcrum_learner::config::RunConfig;
+use fulcrum_learner::ppo::{PpoConfig, Preset};
+use fulcrum_learner::run::RunPaths;
+use fulcrum_shared::intrinsic::Intrinsic;
+use fulcrum_shared::World;
+
+use crate::error::{bad, BadRequest};
+use crate::process::{cores, utc_stamp};
+use crate::select::{load_world, objects_or_default};
+
+/// What the user asked for; `None` = the default (or, on a resume, the run's own).
+#[derive(Debug, Clone, Default)]
+pub struct TrainRequest {
+    /// A built-in world's name or a world file (default: the first built-in world).
+    pub world: Option<String>,
+    /// Intrinsic reward weight.
+    pub beta: Option<f64>,
+    /// The intrinsic reward form's name (`none` for plain PPO).
+    pub intrinsic: Option<String>,
+    /// `switch` (held / not-held horizons) or `fixed` (one horizon).
+    pub horizon_mode: Option<String>,
+    /// Two value heads (extrinsic and intrinsic returns apart).
+    pub intrinsic_value_head: bool,
+    /// Discount of the intrinsic value head.
+    pub gamma_int: Option<f32>,
+    /// Whether actions that cannot change anything are masked out.
+    pub action_mask: bool,
+    /// Seed of weights, sampling and worlds.
+    pub seed: Option<u64>,
+    /// Env steps in all.
+    pub steps: Option<u64>,
+    /// The run directory of a new run (default `runs/<run id>`).
+    pub out: Option<PathBuf>,
+    /// A run directory to continue.
+    pub resume: Option<PathBuf>,
+    /// Actor processes.
+    pub actors: Option<usize>,
+    /// Worlds per actor.
+    pub envs_per_actor: Option<usize>,
+    /// Steps per chunk.
+    pub steps_per_chunk: Option<usize>,
+    /// Threads of the learner.
+    pub learner_threads: Option<usize>,
+    /// Hidden units.
+    pub hidden: Option<usize>,
+    /// The empowerment channel's tool (`auto`, `all` or a tool).
+    pub tool: Option<String>,
+    /// The empowerment channel's objects, comma separated.
+    pub objects: Option<String>,
+    /// Horizon where the tool is not held.
+    pub horizon_unequipped: Option<u32>,
+    /// Horizon where it is held.
+    pub horizon_equipped: Option<u32>,
+    /// Updates an actor's weights may lag behind.
+    pub max_policy_lag: Option<u64>,
+    /// A checkpoint every this many updates.
+    pub checkpoint_every: Option<u64>,
+    /// Adam's learning rate.
+    pub lr: Option<f64>,
+    /// PPO epochs per update.
+    pub epochs: Option<usize>,
+    /// Minibatches per epoch.
+    pub minibatches: Option<usize>,
+    /// The PPO preset's name.
+    pub ppo_preset: Option<String>,
+    /// Actors on other hosts join through a bridge.
+    pub remote: bool,
+    /// Seconds without chunks from a remote host before the learner gives up on it.
+    pub stall_timeout: Option<f64>,
+}
+
+/// A planned run: ready to start.
+#[derive(Debug, Clone)]
+pub struct Planned {
+    /// The checked configuration (already written to `config.toml`).
+    pub cfg: RunConfig,
+    /// Its world.
+    pub world: World,
+    /// Its directory.
+    pub paths: RunPaths,
+    /// Whether it continues an earlier run.
+    pub resumed: bool,
+}
+
+/// The resolved configuration, its world, the run's paths, and whether it is a resume.
+pub fn resolve(a: &TrainRequest) -> Result<Planned> {
+    if let Some(dir) = &a.resume {
+        return resume(a, dir);
+    }
+    let (cfg, w) = plan(a)?;
+    let dir = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("runs").join(&cfg.run_id));
+    let paths = RunPaths { dir: dir.clone() };
+    if paths.config().exists() {
+        return bad(format!(
+            "{} already holds a run; continue it with `fulcrum train --resume {}` or choose another run directory",
+            dir.display(),
+            dir.display()
+        ));
+    }
+    std::fs::create_dir_all(paths.plots())
+        .with_context(|| format!("cannot create {}", dir.display()))?;
+    write_config(&paths, &cfg)?;
+    Ok(Planned {
+        cfg,
+        world: w,
+        paths,
+        resumed: false,
+    })
+}
+
+/// A run directory's configuration with what may change on a resume changed, checked
+/// against its world and its checkpoint.
+fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
+    {
+        let paths = RunPaths {
+            dir: dir.to_path_buf(),
+        };
+        if !paths.config().exists() {
+            return bad(format!(
+                "{}: no config.toml there (is it a run directory?)",
+                dir.display()
+            ));
+        }
+        let mut cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+        if let Some(w) = &a.world {
+            if w != &cfg.world && w != &cfg.world_name {
+                return bad(format!(
+                    "{}: that run trains world '{}', not '{w}'",
+                    dir.display(),
+                    cfg.world_name
+                ));
+            }
+        }
+        if let Some(s) = a.steps {
+            cfg.total_steps = s;
+            whole_updates(&cfg)?;
+        }
+        if let Some(k) = a.checkpoint_every {
+            cfg.checkpoint_every = k;
+        }
+        if let Some(l) = a.max_policy_lag {
+            cfg.max_policy_lag = l;
+        }
+        if let Some(t) = a.learner_threads {
+            cfg.learner_threads = t;
+        }
+        if a.remote {
+            cfg.remote = true;
+        }
+        if let Some(t) = a.stall_timeout {
+            cfg.stall_timeout_s = t;
+        }
+        cfg.check().map_err(BadRequest)?;
+        let w = load_world(&cfg.world)?;
+        if format!("{:016x}", w.content_hash()) != cfg.world_hash {
+            return bad(format!(
+                "{}: the world '{}' has changed since the run started (hash {:016x}, the run has {})",
+                dir.display(),
+                cfg.world,
+                w.content_hash(),
+                cfg.world_hash
+            ));
+        }
+        // A damaged checkpoint is refused here, before any process starts.
+        let ckpt = paths.checkpoint();
+        if ckpt.exists() {
+            let net =
+                fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
+            let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+            const CANNOT: &str =
+                "the run cannot continue from it (start a new run, or restore the file)";
+            let extra = match fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
+                Ok(x) => x,
+                Err(e) => return bad(format!("{e}; {CANNOT}")),
+            };
+            if let Err(e) = cfg.fits_checkpoint(&extra) {
+                return bad(format!("{}: {e}", dir.display()));
+            }
+        }
+        write_config(&paths, &cfg)?;
+        Ok(Planned {
+            cfg,
+            world: w,
+            paths,
+            resumed: true,
+        })
+    }
+}
+
+/// The resolved and checked configuration of a new run, and its world: no file is
+/// written and no process started (an experiment checks every run with it before
+/// starting any).
+pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
+    let spec = a.world.clone().unwrap_or_default();
+    let w = load_world(&spec)?;
+    // A file path is stored absolute so that a resume from elsewhere finds it.
+    let world_spec =
+        if fulcrum_shared::builtin::source(&spec).is_none() && Path::new(&spec).exists() {
+            std::fs::canonicalize(&spec)
+                .map(|p| p.display().to_string())
+                .unwrap_or(spec.clone())
+        } else {
+            spec.clone()
+        };
+    let form: Intrinsic = match &a.intrinsic {
+        Some(f) => f.parse().map_err(BadRequest)?,
+        None => Intrinsic::Additive,
+    };
+    let fixed = a.horizon_mode.as_deref() == Some("fixed");
+    let preset: Preset = a
+        .ppo_preset
+        .as_deref()
+        .unwrap_or("fulcrum")
+        .parse()
+        .map_err(BadRequest)?;
+    let n = cores();
+    let actors = a.actors.unwrap_or(n.saturating_sub(1).max(1));
+    let seed = a.seed.unwrap_or(1);
+    let e = &w.empowerment;
+    let time = utc_stamp();
+    let run_id = format!("{}-{time}-{seed}", w.name);
+    let cfg = RunConfig {
+        fulcrum_version: env!("CARGO_PKG_VERSION").to_string(),
+        run_id: run_id.clone(),
+        world: world_spec,
+        world_name: w.name.clone(),
+        world_hash: format!("{:016x}", w.content_hash()),
+        seed,
+        total_steps: a.steps.unwrap_or(500_000),
+        actors,
+        envs_per_actor: a.envs_per_actor.unwrap_or(8),
+        steps_per_chunk: a
+            .steps_per_chunk
+            .or(preset.steps_per_chunk())
+            .unwrap_or(128),
+        learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
+        hidden: a.hidden.unwrap_or(64),
+        beta: if form == Intrinsic::None {
+            0.0
+        } else {
+            a.beta.unwrap_or(form.default_beta(e.beta))
+        },
+        empowerment: form.uses_service(),
+        intrinsic: form.name().into(),
+        horizon_mode: a.horizon_mode.clone().unwrap_or_else(|| "switch".into()),
+        tool: a.tool.clone().unwrap_or_else(|| "default".into()),
+        objects: a.objects.clone().unwrap_or_default(),
+        horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
+        horizon_equipped: match (fixed, a.horizon_equipped) {
+            (true, None) => a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
+            (_, h) => h.unwrap_or(e.horizon_equipped),
+        },
+        max_policy_lag: a.max_policy_lag.unwrap_or(0),
+        checkpoint_every: a.checkpoint_every.unwrap_or(10),
+        remote: a.remote,
+        stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
+        action_mask: a.action_mask,
+        intrinsic_value_head: a.intrinsic_value_head,
+        gamma_int: a.gamma_int.unwrap_or(0.99),
+        ppo: {
+            let d = preset.ppo();
+            PpoConfig {
+                epochs: a.epochs.unwrap_or(d.epochs),
+                minibatches: a.minibatches.unwrap_or(d.minibatches),
+                lr: a.lr.unwrap_or(d.lr),
+                ..d
+            }
+        },
+    };
+    cfg.check().map_err(BadRequest)?;
+    if a.steps.is_some() {
+        whole_updates(&cfg)?;
+    }
+    if cfg.empowerment {
+        // Tool and objects are resolved (and refused) here, before any process starts.
+        objects_or_default(
+            &w,
+            (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+        )?;
+        if let Some(t) = &a.tool {
+            if t != "auto" && t != "all" && w.tool_index(t).is_none() {
+                return bad(format!(
+                    "unknown tool '{t}' in world '{}' (tools: {}; or all, auto)",
+                    w.name,
+                    w.tool_list()
+                ));
+            }
+        }
+    }
+    Ok((cfg, w))
+}
+
+/// An explicit step count must be whole updates: a run never stops in the middle of
+/// one, and a silent round-up would train for more steps than asked.
+fn whole_updates(cfg: &RunConfig) -> Result<()> {
+    let b = cfg.batch() as u64;
+    let s = cfg.total_steps;
+    if s % b != 0 {
+        let below = s / b * b;
+        return bad(format!(
+            "{s} env steps is not a whole number of updates of {b} steps (actors x worlds per actor x steps per chunk): use {}{}",
+            if below > 0 { format!("{below} or ") } else { String::new() },
+            below + b
+        ));
+    }
+    Ok(())
+}
+
+fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
+    let text = format!(
+        "# fulcrum run configuration (resolved); `fulcrum train --resume {}` continues it.\n{}",
+        paths.dir.display(),
+        cfg.to_toml()
+    );
+    fulcrum_shared::fsio::write_atomic(&paths.config(), text.as_bytes())
+        .with_context(|| format!("cannot write {}", paths.config().display()))
+}

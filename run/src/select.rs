@@ -1,0 +1,139 @@
+//! Reading what a request names: a world by name or path, an object set, a tool (or
+//! the tool selection of the matrix), an inventory. Each mistake is a
+//! [`BadRequest`](crate::BadRequest) naming what was not understood and what would be.
+
+use anyhow::Result;
+use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
+use fulcrum_shared::{ObjectSet, ToolChoice, World};
+
+use crate::error::bad;
+
+/// Load a world by name or path.
+pub fn load_world(name: &str) -> Result<World> {
+    Ok(fulcrum_shared::load_world(name)?)
+}
+
+/// Enumerate a world's state space with the default limits.
+pub fn engine(world: &World) -> Result<Engine<'_>> {
+    Ok(Engine::new(world, Limits::default())?)
+}
+
+/// Parse an object set: `agent`, or names joined by `,` or `+`.
+pub fn object_set(world: &World, text: &str) -> Result<ObjectSet> {
+    if text == "agent" {
+        return Ok(ObjectSet::Agent);
+    }
+    let mut v = Vec::new();
+    for name in text.split([',', '+']).map(str::trim) {
+        if name.is_empty() {
+            return bad(format!(
+                "'{text}' is not an object list: write names like tree,wall or door+boulder"
+            ));
+        }
+        match world.object_index(name) {
+            Some(i) if !v.contains(&i) => v.push(i),
+            Some(_) => {}
+            None => {
+                let list = if world.objects.is_empty() {
+                    "none".to_string()
+                } else {
+                    world.object_list()
+                };
+                return bad(format!(
+                    "unknown object '{name}' in world '{}' (objects: {list}; or agent)",
+                    world.name
+                ));
+            }
+        }
+    }
+    v.sort_unstable();
+    Ok(ObjectSet::Objects(v))
+}
+
+/// The object set asked for, or the world's `[empowerment]` objects.
+pub fn objects_or_default(world: &World, text: Option<&str>) -> Result<ObjectSet> {
+    match text {
+        Some(t) => object_set(world, t),
+        None => match &world.empowerment.objects {
+            Some(s) => Ok(s.clone()),
+            None => bad(format!(
+                "world '{}' names no [empowerment] objects: name some (objects: {})",
+                world.name,
+                world.object_list()
+            )),
+        },
+    }
+}
+
+/// Parse a tool name (`all`, `auto`, a name, kind or letter); `auto` selects by the
+/// matrix column of `set` at the world's horizons.
+pub fn tool_sel(
+    world: &World,
+    engine: &Engine,
+    text: Option<&str>,
+    set: &ObjectSet,
+) -> Result<ToolSel> {
+    let choice = match text {
+        None => world.empowerment.tool.clone(),
+        Some("auto") => ToolChoice::Auto,
+        Some("all") => ToolChoice::All,
+        Some(t) => match world.tool_index(t) {
+            Some(k) => ToolChoice::Tool(k),
+            None => {
+                return bad(format!(
+                    "unknown tool '{t}' in world '{}' (tools: {}; or all, auto)",
+                    world.name,
+                    if world.tools.is_empty() {
+                        "none".to_string()
+                    } else {
+                        world.tool_list()
+                    }
+                ))
+            }
+        },
+    };
+    Ok(match choice {
+        ToolChoice::All => ToolSel::All,
+        ToolChoice::Tool(k) => ToolSel::Tool(k),
+        ToolChoice::Auto => {
+            let e = &world.empowerment;
+            let m = engine.matrix(
+                std::slice::from_ref(set),
+                e.horizon_unequipped,
+                e.horizon_equipped,
+                Method::Dp,
+            )?;
+            match m.selection[0] {
+                Some(k) => {
+                    tracing::info!(tool = %m.tools[k], "tool selection");
+                    ToolSel::Tool(k)
+                }
+                None => {
+                    return bad(format!(
+                        "tool selection: no tool of world '{}' has empowerment over {}; name one",
+                        world.name,
+                        fulcrum_empowerment::set_name(world, set)
+                    ))
+                }
+            }
+        }
+    })
+}
+
+/// Parse a comma-separated inventory into a bit mask.
+pub fn holding_mask(world: &World, text: &str) -> Result<u16> {
+    let mut m = 0u16;
+    for t in text.split(',').map(str::trim).filter(|t| !t.is_empty()) {
+        match world.tool_index(t) {
+            Some(k) => m |= 1 << k,
+            None => {
+                return bad(format!(
+                    "unknown tool '{t}' in the inventory for world '{}' (tools: {})",
+                    world.name,
+                    world.tool_list()
+                ))
+            }
+        }
+    }
+    Ok(m)
+}

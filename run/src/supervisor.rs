@@ -1,0 +1,462 @@
+//! The supervisor of a training run: it starts the empowerment service, the learner,
+//! the bridge to other hosts and the actors as child processes of the `fulcrum`
+//! executable, shows the learner's progress, restarts crashed actors, bridge and
+//! service (bounded), and stops everything in order.
+//!
+//! ```text
+//! fulcrum train WORLD            supervisor: run directory, config.toml, children, progress
+//!  |- fulcrum serve WORLD        empowerment service   (fulcrum/<ns>/empowerment)
+//!  |- fulcrum __learner          PPO learner           (subscribes chunks, publishes weights)
+//!  '- fulcrum __actor  x K       actors                (publish chunks, subscribe weights)
+//! ```
+//!
+//! Children run in their own process group (a terminal's Ctrl-C reaches only the
+//! supervisor, which stops them in order: the learner first, so that it writes its
+//! checkpoint) and die with the supervisor (`PR_SET_PDEATHSIG`). A crashed learner
+//! ends the run with its last checkpoint and a message saying how to resume.
+//!
+//! The loop waits on events, not on a clock: one `select!` over the learner's lines,
+//! the children's exits and the stop signal.
+
+use std::os::unix::process::CommandExt;
+use std::path::PathBuf;
+use std::process::{Child, Command, ExitStatus, Stdio};
+use std::time::Duration;
+
+use anyhow::{Context, Result};
+use crossbeam_channel::{never, select, Receiver, Sender};
+use fulcrum_learner::config::RunConfig;
+use fulcrum_learner::run::RunPaths;
+
+use crate::error::bad;
+use crate::process::{
+    cores, describe_status, exit_event, hostname, signal, spawn_until_ready, stop_children,
+    stop_events, Ready,
+};
+use crate::progress::Progress;
+
+/// Exit code of a learner that stopped early on request (after a set number of updates).
+pub const EXIT_PAUSED: i32 = 3;
+/// Exit code of a learner stopped by a signal after writing its checkpoint.
+pub const EXIT_INTERRUPTED: i32 = 130;
+
+/// How long the empowerment service may take to build its table.
+const SERVICE_READY: Duration = Duration::from_secs(600);
+
+/// How a supervised run ended (failures are errors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outcome {
+    /// Every update was made.
+    Finished,
+    /// The learner stopped after the updates it was asked to make; checkpoint written.
+    Paused,
+    /// A signal stopped the run; checkpoint written.
+    Interrupted,
+}
+
+/// What the supervisor needs besides the run's configuration.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// The iceoryx2 namespace of the run's services.
+    pub namespace: String,
+    /// The `fulcrum` executable the children are started from.
+    pub exe: PathBuf,
+    /// Address the bridge listens on for actors on other hosts (none: one host).
+    pub listen: Option<String>,
+    /// The bridge's zenoh session timeout, seconds.
+    pub session_timeout: f64,
+    /// A zenoh configuration file for the bridge.
+    pub zenoh_config: Option<PathBuf>,
+    /// Restarts of crashed children the run may spend in all.
+    pub max_restarts: u32,
+    /// The learner stops (checkpoint written) after this many updates.
+    pub stop_after: Option<u64>,
+}
+
+/// Which child an exit event is about.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Who {
+    Learner,
+    Service,
+    Bridge,
+    /// Actor index and incarnation.
+    Actor(usize, u32),
+}
+
+/// Runs `cfg` in `paths` to its end: starts every child, waits, stops them all.
+pub fn supervise(cfg: &RunConfig, paths: &RunPaths, opts: &Options) -> Result<Outcome> {
+    let (exits_tx, exits) = crossbeam_channel::unbounded();
+    let mut sup = Supervisor {
+        cfg: cfg.clone(),
+        paths: paths.clone(),
+        opts: opts.clone(),
+        exits_tx,
+        exits,
+        service: None,
+        bridge: None,
+        learner: None,
+        learner_lines: never(),
+        actors: Vec::new(),
+        restarts: 0,
+    };
+    let result = sup.run();
+    sup.shutdown();
+    fulcrum_empowerment::service::clean_dead_nodes();
+    result
+}
+
+struct Supervisor {
+    cfg: RunConfig,
+    paths: RunPaths,
+    opts: Options,
+    /// Every child's exit, as it happens.
+    exits_tx: Sender<Who>,
+    exits: Receiver<Who>,
+    service: Option<Child>,
+    bridge: Option<Child>,
+    learner: Option<Child>,
+    learner_lines: Receiver<String>,
+    /// Each actor and its incarnation.
+    actors: Vec<(Option<Child>, u32)>,
+    restarts: u32,
+}
+
+impl Supervisor {
+    /// A child of the `fulcrum` executable with `threads` threads, in its own process
+    /// group.
+    fn command(&self, args: &[String], threads: usize) -> Command {
+        let mut c = Command::new(&self.opts.exe);
+        c.args(args)
+            .env("RAYON_NUM_THREADS", threads.to_string())
+            .env("CANDLE_NUM_THREADS", threads.to_string())
+            .stdin(Stdio::null())
+            .process_group(0);
+        c
+    }
+
+    /// The arguments every hidden child process gets.
+    fn child_args(&self, what: &str) -> Vec<String> {
+        vec![
+            what.into(),
+            "--run".into(),
+            self.paths.dir.display().to_string(),
+            "--namespace".into(),
+            self.opts.namespace.clone(),
+            "--parent".into(),
+            std::process::id().to_string(),
+        ]
+    }
+
+    /// Tells the loop when `child` exits.
+    fn watch(&self, child: &Child, who: Who) {
+        let ev = exit_event(child);
+        let tx = self.exits_tx.clone();
+        std::thread::spawn(move || {
+            if ev.recv().is_ok() {
+                let _ = tx.send(who);
+            }
+        });
+    }
+
+    /// The empowerment service; returns once its table is built (or the run stops).
+    fn start_service(&mut self) -> Result<()> {
+        let mut args = vec![
+            "serve".to_string(),
+            self.cfg.world.clone(),
+            "--namespace".into(),
+            self.opts.namespace.clone(),
+            "--horizon-unequipped".into(),
+            self.cfg.horizon_unequipped.to_string(),
+            "--horizon-equipped".into(),
+            self.cfg.horizon_equipped.to_string(),
+        ];
+        if self.cfg.tool != "default" {
+            args.extend(["--tool".into(), self.cfg.tool.clone()]);
+        }
+        if !self.cfg.objects.is_empty() {
+            args.extend(["--objects".into(), self.cfg.objects.clone()]);
+        }
+        if self.cfg.form().horizon_sum() {
+            args.push("--horizon-sum".into());
+        }
+        let mut cmd = self.command(&args, cores());
+        // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
+        unsafe {
+            cmd.pre_exec(|| {
+                libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+                Ok(())
+            });
+        }
+        match spawn_until_ready(cmd, "the empowerment service", Some(SERVICE_READY))? {
+            Ready::Ready(child, _) => {
+                self.watch(&child, Who::Service);
+                self.service = Some(child);
+                Ok(())
+            }
+            Ready::Stopped => Ok(()),
+            Ready::Exited(s) => anyhow::bail!(
+                "the empowerment service stopped before it was ready ({})",
+                describe_status(s)
+            ),
+        }
+    }
+
+    /// The bridge to other hosts; returns once it listens.
+    fn start_bridge(&mut self) -> Result<()> {
+        let Some(addr) = self.opts.listen.clone() else {
+            return Ok(());
+        };
+        let mut args = vec![
+            "bridge".to_string(),
+            "--listen".into(),
+            addr.clone(),
+            "--run".into(),
+            self.paths.dir.display().to_string(),
+            "--namespace".into(),
+            self.opts.namespace.clone(),
+            "--parent".into(),
+            std::process::id().to_string(),
+            "--session-timeout".into(),
+            self.opts.session_timeout.to_string(),
+        ];
+        if let Some(c) = &self.opts.zenoh_config {
+            args.extend(["--zenoh-config".into(), c.display().to_string()]);
+        }
+        let cmd = self.command(&args, 1);
+        let child = match spawn_until_ready(cmd, "the bridge", None)? {
+            Ready::Ready(child, _) => child,
+            Ready::Stopped => return Ok(()),
+            Ready::Exited(s) if s.code() == Some(2) => {
+                return bad(format!(
+                    "the bridge refused the address {addr} (its message is above)"
+                ))
+            }
+            Ready::Exited(s) => anyhow::bail!(
+                "the bridge stopped before it listened ({})",
+                describe_status(s)
+            ),
+        };
+        // A wildcard address is not one to connect to: name this host instead.
+        let hint = match addr.trim_start_matches("tcp/").rsplit_once(':') {
+            Some((h, port)) if h == "0.0.0.0" || h == "[::]" => {
+                format!("{}:{port}", hostname())
+            }
+            _ => addr.clone(),
+        };
+        eprintln!(
+            "fulcrum train: actors on other hosts may join: fulcrum actor-host --connect {hint}"
+        );
+        self.watch(&child, Who::Bridge);
+        self.bridge = Some(child);
+        Ok(())
+    }
+
+    fn start_learner(&mut self) -> Result<()> {
+        let mut args = self.child_args("__learner");
+        if let Some(n) = self.opts.stop_after {
+            args.extend(["--stop-after-updates".into(), n.to_string()]);
+        }
+        let mut cmd = self.command(&args, self.cfg.learner_threads);
+        cmd.stdout(Stdio::piped());
+        let mut child = cmd.spawn().context("cannot start the learner")?;
+        self.learner_lines = crate::process::lines(&mut child)?;
+        self.watch(&child, Who::Learner);
+        self.learner = Some(child);
+        Ok(())
+    }
+
+    fn start_actor(&mut self, i: usize, incarnation: u32) -> Result<()> {
+        let mut args = self.child_args("__actor");
+        args.extend([
+            "--index".into(),
+            i.to_string(),
+            "--incarnation".into(),
+            incarnation.to_string(),
+        ]);
+        let child = self
+            .command(&args, 1)
+            .spawn()
+            .with_context(|| format!("cannot start actor {i}"))?;
+        self.watch(&child, Who::Actor(i, incarnation));
+        if i == self.actors.len() {
+            self.actors.push((Some(child), incarnation));
+        } else {
+            self.actors[i] = (Some(child), incarnation);
+        }
+        Ok(())
+    }
+
+    fn run(&mut self) -> Result<Outcome> {
+        let stop = stop_events()?;
+        if self.cfg.empowerment {
+            self.start_service()?;
+            if crate::process::stopping() {
+                return Ok(Outcome::Interrupted);
+            }
+        }
+        self.start_learner()?;
+        self.start_bridge()?;
+        for i in 0..self.cfg.actors {
+            self.start_actor(i, 0)?;
+        }
+        let mut progress = Progress::new(
+            "fulcrum train",
+            self.cfg.updates(),
+            "{elapsed_precise} [{bar:30}] {pos}/{len} updates  {msg}",
+            Duration::from_secs(5),
+        );
+        let mut stopping = false;
+        loop {
+            let stop_now = if stopping { never() } else { stop.clone() };
+            select! {
+                recv(self.learner_lines) -> line => match line {
+                    Ok(l) => learner_line(&mut progress, &l),
+                    Err(_) => self.learner_lines = never(),
+                },
+                recv(stop_now) -> _ => {
+                    // The learner writes its checkpoint and exits; then the rest stop.
+                    if let Some(l) = &self.learner {
+                        signal(l, libc::SIGINT);
+                    }
+                    stopping = true;
+                },
+                recv(self.exits) -> who => {
+                    let who = who.context("the exit watchers are gone")?;
+                    if who == Who::Learner {
+                        return self.learner_ended(&mut progress, stopping);
+                    }
+                    if !stopping {
+                        self.restart(who, &mut progress)?;
+                    }
+                },
+            }
+        }
+    }
+
+    /// The learner has exited: its last lines, then what its exit code means.
+    fn learner_ended(&mut self, progress: &mut Progress, stopping: bool) -> Result<Outcome> {
+        let mut l = self.learner.take().context("no learner")?;
+        let s = l.wait().context("cannot wait for the learner")?;
+        // Its stdout is closed: the reader thread ends after the last line.
+        for line in self.learner_lines.iter() {
+            learner_line(progress, &line);
+        }
+        self.learner_lines = never();
+        progress.finish();
+        match s.code() {
+            Some(0) => Ok(Outcome::Finished),
+            Some(EXIT_PAUSED) => Ok(Outcome::Paused),
+            Some(EXIT_INTERRUPTED) if stopping => Ok(Outcome::Interrupted),
+            _ => Err(anyhow::anyhow!(
+                "the learner failed ({}); the last checkpoint is in {}; continue with `fulcrum train --resume {}`",
+                describe_status(s),
+                self.paths.checkpoint().display(),
+                self.paths.dir.display()
+            )),
+        }
+    }
+
+    /// Restarts a child that stopped (bounded by the run's restarts).
+    fn restart(&mut self, who: Who, progress: &mut Progress) -> Result<()> {
+        match who {
+            Who::Learner => Ok(()),
+            Who::Actor(i, inc) => {
+                let current = self.actors[i].1 == inc;
+                let Some(s) = reap(&mut self.actors[i].0, current)? else {
+                    return Ok(());
+                };
+                self.count_restart(&format!("actor {i}"), s)?;
+                progress.note(&format!(
+                    "actor {i} stopped ({}); restarted ({} of {} restarts)",
+                    describe_status(s),
+                    self.restarts,
+                    self.opts.max_restarts
+                ));
+                self.start_actor(i, inc + 1)
+            }
+            Who::Bridge => {
+                let Some(s) = reap(&mut self.bridge, true)? else {
+                    return Ok(());
+                };
+                self.count_restart("the bridge", s)?;
+                progress.note(&format!(
+                    "the bridge stopped ({}); restarting it",
+                    describe_status(s)
+                ));
+                self.start_bridge()
+            }
+            Who::Service => {
+                let Some(s) = reap(&mut self.service, true)? else {
+                    return Ok(());
+                };
+                self.count_restart("the empowerment service", s)?;
+                progress.note(&format!(
+                    "the empowerment service stopped ({}); restarting it",
+                    describe_status(s)
+                ));
+                fulcrum_empowerment::service::clean_dead_nodes();
+                self.start_service()
+            }
+        }
+    }
+
+    /// Count the restart of a stopped child: an error once the run has used up its
+    /// restarts.
+    fn count_restart(&mut self, what: &str, s: ExitStatus) -> Result<()> {
+        self.restarts += 1;
+        if self.restarts > self.opts.max_restarts {
+            anyhow::bail!(
+                "{what} stopped ({}) and the run used up its {} restarts",
+                describe_status(s),
+                self.opts.max_restarts
+            );
+        }
+        Ok(())
+    }
+
+    /// Stop every child: SIGTERM, then SIGKILL after a grace period.
+    fn shutdown(&mut self) {
+        let mut all: Vec<Child> = Vec::new();
+        all.extend(self.learner.take());
+        all.extend(self.actors.drain(..).filter_map(|(c, _)| c));
+        all.extend(self.service.take());
+        all.extend(self.bridge.take());
+        stop_children(all);
+    }
+}
+
+/// The exit status of the child in `slot` if `current` (the event is about it) and it
+/// has exited; the slot is emptied.
+fn reap(slot: &mut Option<Child>, current: bool) -> Result<Option<ExitStatus>> {
+    if !current {
+        return Ok(None);
+    }
+    let s = crate::process::exited(slot)?;
+    if s.is_some() {
+        *slot = None;
+    }
+    Ok(s)
+}
+
+/// A line from the learner: `progress U N STEPS SUCCESS RETURN SPS`.
+fn learner_line(progress: &mut Progress, line: &str) {
+    let v: Vec<&str> = line.split_whitespace().collect();
+    if v.first() != Some(&"progress") || v.len() < 7 {
+        return;
+    }
+    let u: u64 = v[1].parse().unwrap_or(0);
+    // Runs with actors on other hosts re-plan their updates as hosts come and go.
+    if let Some(total) = v[2]
+        .parse::<u64>()
+        .ok()
+        .filter(|&t| t != progress.total() && t > 0)
+    {
+        progress.set_total(total);
+    }
+    let msg = format!(
+        "steps {}  success {}  return {}  {} steps/s",
+        v[3], v[4], v[5], v[6]
+    );
+    let total = progress.total();
+    progress.set(u, msg, |m| format!("update {u}/{total}  {m}"));
+}
