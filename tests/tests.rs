@@ -6,3 +6,4 @@ mod experiment;
 mod multihost;
 mod service;
 mod train;
+mod util;

@@ -257,12 +257,12 @@ pub fn lines(child: &mut Child) -> Result<Receiver<String>> {
     Ok(rx)
 }
 
-/// How [`spawn_until_ready`] ended.
+/// How [`spawn_until`] ended.
 #[derive(Debug)]
-pub enum Ready {
-    /// The child printed its `ready` line and runs on; its later lines follow in the
-    /// receiver.
-    Ready(Child, Receiver<String>),
+pub enum Ready<T> {
+    /// The child printed the line it was waited for, read as `T`, and runs on; its
+    /// later lines follow in the receiver.
+    Ready(Child, T, Receiver<String>),
     /// The stop flag was raised first: the child was killed.
     Stopped,
     /// The child exited before it was ready.
@@ -270,13 +270,24 @@ pub enum Ready {
 }
 
 /// Starts `cmd` with its stdout piped and waits until the child prints a line
-/// containing `ready`, exits, the stop flag is raised, or `deadline` passes (an
-/// error naming `what`).
+/// containing `ready`; see [`spawn_until`].
 pub fn spawn_until_ready(
+    cmd: Command,
+    what: &str,
+    deadline: Option<Duration>,
+) -> Result<Ready<()>> {
+    spawn_until(cmd, what, deadline, |l| l.contains("ready").then_some(()))
+}
+
+/// Starts `cmd` with its stdout piped and waits until the child prints a line that
+/// `ready` reads as a `T`, exits, the stop flag is raised, or `deadline` passes (an
+/// error naming `what`; the child is killed).
+pub fn spawn_until<T>(
     mut cmd: Command,
     what: &str,
     deadline: Option<Duration>,
-) -> Result<Ready> {
+    mut ready: impl FnMut(&str) -> Option<T>,
+) -> Result<Ready<T>> {
     cmd.stdout(Stdio::piped());
     let mut child = cmd
         .spawn()
@@ -285,11 +296,14 @@ pub fn spawn_until_ready(
     let t0 = Instant::now();
     let timeout = deadline.map(after).unwrap_or_else(never);
     loop {
-        // The child's exit and the stop flag have no channel: look every 50 ms.
+        // The child's exit and the stop flag have no channel here: look every 50 ms.
         select! {
             recv(rx) -> line => match line {
-                Ok(l) if l.contains("ready") => return Ok(Ready::Ready(child, rx)),
-                Ok(_) => {}
+                Ok(l) => {
+                    if let Some(t) = ready(&l) {
+                        return Ok(Ready::Ready(child, t, rx));
+                    }
+                }
                 Err(_) => {
                     // stdout closed: the child is exiting.
                     let s = child.wait().with_context(|| format!("cannot wait for {what}"))?;

@@ -188,7 +188,7 @@ impl Supervisor {
             });
         }
         match spawn_until_ready(cmd, "the empowerment service", Some(SERVICE_READY))? {
-            Ready::Ready(child, _) => {
+            Ready::Ready(child, (), _) => {
                 self.watch(&child, Who::Service);
                 self.service = Some(child);
                 Ok(())
@@ -224,7 +224,7 @@ impl Supervisor {
         }
         let cmd = self.command(&args, 1);
         let child = match spawn_until_ready(cmd, "the bridge", None)? {
-            Ready::Ready(child, _) => child,
+            Ready::Ready(child, (), _) => child,
             Ready::Stopped => return Ok(()),
             Ready::Exited(s) if s.code() == Some(2) => {
                 return bad(format!(

@@ -13,11 +13,9 @@
 //! reconnects, the actors wait for weights meanwhile). The host stops when the run is
 //! over (the learner's bridge says so), on SIGINT/SIGTERM, or when the bridge fails.
 
-use std::io::{BufRead, BufReader};
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::Ordering;
-use std::sync::mpsc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
@@ -25,7 +23,9 @@ use anyhow::{Context, Result};
 use crate::cli::ActorHostArgs;
 use fulcrum_bridge::{actor_id, default_dir, Joined};
 use fulcrum_run::bad;
-use fulcrum_run::process::{cores, hostname, install_signal_handlers, signal, stop_children, STOP};
+use fulcrum_run::process::{
+    cores, hostname, install_signal_handlers, spawn_until, stop_children, Ready, STOP,
+};
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {
@@ -64,44 +64,21 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     if let Some(c) = &a.zenoh.zenoh_config {
         args.extend(["--zenoh-config".into(), c.display().to_string()]);
     }
-    let mut bridge = Command::new(&exe)
-        .args(&args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .process_group(0)
-        .spawn()
-        .context("cannot start the bridge")?;
-    let out = bridge.stdout.take().context("bridge stdout")?;
-    let (tx, rx) = mpsc::channel::<String>();
-    std::thread::spawn(move || {
-        for line in BufReader::new(out).lines().map_while(|l| l.ok()) {
-            if tx.send(line).is_err() {
-                break;
-            }
-        }
-    });
     eprintln!(
         "fulcrum actor-host: '{name}' joining the run at {} with {k} actors",
         a.connect
     );
+    let mut cmd = Command::new(&exe);
+    cmd.args(&args).stdin(Stdio::null()).process_group(0);
     // Wait for the bridge to join.
-    let joined = loop {
-        if let Ok(line) = rx.recv_timeout(Duration::from_millis(50)) {
-            if let Some(j) = Joined::parse(&line) {
-                break j;
-            }
-            continue;
-        }
-        if let Some(s) = bridge.try_wait()? {
+    let (mut bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, Joined::parse)? {
+        Ready::Ready(bridge, joined, rx) => (bridge, joined, rx),
+        Ready::Stopped => return Ok(()),
+        Ready::Exited(s) => {
             return match s.code() {
                 Some(2) => bad("the bridge refused to join (its message is above)"),
                 _ => Err(anyhow::anyhow!("the bridge stopped before it joined ({s})")),
-            };
-        }
-        if STOP.load(Ordering::Relaxed) {
-            signal(&bridge, libc::SIGTERM);
-            let _ = bridge.wait();
-            return Ok(());
+            }
         }
     };
     eprintln!(

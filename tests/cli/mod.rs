@@ -1,17 +1,9 @@
 //! The command line: JSON shapes the README shows, values of worlds/EXPECTED.md through the
 //! binary, bad input (one sentence, exit code 2), and files written.
 
-use std::path::PathBuf;
-use std::process::{Command, Output};
-
 use serde_json::Value;
 
-fn fulcrum(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_fulcrum"))
-        .args(args)
-        .output()
-        .expect("the fulcrum binary runs")
-}
+use crate::util::{run as fulcrum, TempDir};
 
 fn json(args: &[&str]) -> Value {
     let out = fulcrum(args);
@@ -21,14 +13,6 @@ fn json(args: &[&str]) -> Value {
         String::from_utf8_lossy(&out.stderr)
     );
     serde_json::from_slice(&out.stdout).expect("valid JSON on stdout")
-}
-
-/// A fresh directory for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fulcrum-test-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
 }
 
 /// Runs and fails with exit code 2 and one line on stderr mentioning `needle`.
@@ -220,7 +204,7 @@ fn query_local() {
 
 #[test]
 fn query_states_file() {
-    let d = temp_dir("states");
+    let d = TempDir::new("states");
     let f = d.join("states.txt");
     std::fs::write(
         &f,
@@ -290,7 +274,7 @@ fn world_show_and_generate() {
     let v = json(&["world", "show", "exp2", "--json"]);
     assert_eq!(v["states"], 10988);
     assert_eq!(v["actions"].as_array().unwrap().len(), 9);
-    let d = temp_dir("gen");
+    let d = TempDir::new("gen");
     let f = d.join("g.toml");
     let out = fulcrum(&[
         "world",
@@ -417,7 +401,7 @@ fn bad_input_is_one_sentence_and_exit_code_2() {
     );
     bad_input(&["world", "generate", "--width", "2"], "--width 2");
     // A world file with a mistake: file, line and column.
-    let d = temp_dir("badworld");
+    let d = TempDir::new("badworld");
     let f = d.join("bad.toml");
     std::fs::write(
         &f,
@@ -435,7 +419,7 @@ fn bad_input_is_one_sentence_and_exit_code_2() {
 fn a_state_space_over_the_memory_limit_is_refused_before_it_starts() {
     // A 64x64 room with many boulders cannot be enumerated on any machine: the refusal
     // names the estimate.
-    let d = temp_dir("huge");
+    let d = TempDir::new("huge");
     let f = d.join("huge.toml");
     let out = fulcrum(&[
         "world",
@@ -454,7 +438,7 @@ fn a_state_space_over_the_memory_limit_is_refused_before_it_starts() {
         f.to_str().unwrap(),
     ]);
     assert!(out.status.success());
-    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+    let out = crate::util::fulcrum()
         .args(["empowerment", "matrix", f.to_str().unwrap()])
         .env("FULCRUM_MAX_MEMORY", "64MiB")
         .output()
@@ -467,7 +451,7 @@ fn a_state_space_over_the_memory_limit_is_refused_before_it_starts() {
 
 #[test]
 fn landscape_and_trace_pictures_are_written() {
-    let d = temp_dir("png");
+    let d = TempDir::new("png");
     let l = d.join("landscape.png");
     let t = d.join("trace.png");
     let out = fulcrum(&[
@@ -523,7 +507,7 @@ fn landscape_and_trace_pictures_are_written() {
 
 #[test]
 fn the_matrix_picture_has_a_row_per_tool() {
-    let d = temp_dir("matrix-png");
+    let d = TempDir::new("matrix-png");
     let m = d.join("matrix.png");
     let out = fulcrum(&[
         "empowerment",
@@ -552,7 +536,7 @@ fn the_matrix_picture_has_a_row_per_tool() {
 
 #[test]
 fn record_refuses_a_directory_without_a_run() {
-    let d = temp_dir("record-none");
+    let d = TempDir::new("record-none");
     std::fs::create_dir_all(&d).unwrap();
     let out = fulcrum(&["record", d.to_str().unwrap()]);
     let err = String::from_utf8_lossy(&out.stderr);

@@ -1,27 +1,13 @@
 //! `fulcrum experiment`: the aggregation of finished runs against hand-counted values,
 //! resuming an interrupted experiment (real `train` runs, a real SIGINT), and refusals.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant, SystemTime};
+use std::time::{Duration, Instant};
 
 use fulcrum_learner::run::{read_metrics, MetricsRow, METRICS_COLUMNS};
 
-fn exp_dir(name: &str) -> PathBuf {
-    let nanos = SystemTime::now()
-        .duration_since(SystemTime::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let d = std::env::temp_dir().join(format!("fulcrum-exp-{name}-{}-{nanos}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
-
-fn fulcrum() -> Command {
-    let mut c = Command::new(env!("CARGO_BIN_EXE_fulcrum"));
-    c.stdin(Stdio::null());
-    c
-}
+use crate::util::{fulcrum, TempDir};
 
 /// A finished run made by hand: 10 updates of 1024 steps, 10 episodes each, success
 /// `f(i)` at update i, and a checkpoint file (its presence marks the run finished).
@@ -54,7 +40,7 @@ fn close(a: f64, b: f64) -> bool {
 
 #[test]
 fn finished_runs_are_aggregated_into_hand_counted_figures() {
-    let dir = exp_dir("aggregate");
+    let dir = TempDir::fresh("aggregate");
     // baseline: seed 1 = i/10 (0.9 at update 9), seed 2 = min(1, 2i/10) (at update 5),
     // seed 3 = 0 (never). empowerment: 1 from update 2 on, every seed.
     fake_run(&dir.join("runs/baseline/seed-1"), |i| i as f64 / 10.0);
@@ -171,7 +157,7 @@ fn first_line_and_status(args: &[&str], dir: &Path) -> (i32, String) {
 
 #[test]
 fn bad_experiments_are_refused_before_any_run() {
-    let dir = exp_dir("bad");
+    let dir = TempDir::fresh("bad");
     for (args, says) in [
         (
             vec!["experiment", "room", "--arms", "baseline,nope"],
@@ -220,7 +206,7 @@ const TRAIN: &[&str] = &["--", "--steps-per-chunk", "32", "--checkpoint-every", 
 
 #[test]
 fn an_interrupted_experiment_resumes_without_rerunning_finished_runs() {
-    let dir = exp_dir("resume");
+    let dir = TempDir::fresh("resume");
     let (s1, s2) = (
         dir.join("runs/baseline/seed-1"),
         dir.join("runs/baseline/seed-2"),
@@ -319,7 +305,7 @@ fn an_interrupted_experiment_resumes_without_rerunning_finished_runs() {
 
 #[test]
 fn a_beta_sweep_runs_one_empowerment_arm_per_beta() {
-    let dir = exp_dir("sweep");
+    let dir = TempDir::fresh("sweep");
     let out = fulcrum()
         .args(["experiment", "room", "--seeds", "1", "--arms", "baseline"])
         .args(["--beta-sweep", "0.001,0.05", "--envs-per-actor", "4"])

@@ -8,22 +8,14 @@
 //! and takes the host back; it needs root and iproute2 and says so when skipped.
 
 use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use fulcrum_learner::run::read_metrics;
 
-fn bin() -> &'static str {
-    env!("CARGO_BIN_EXE_fulcrum")
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fulcrum-mh-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
+use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 /// A TCP port that was free a moment ago.
 fn free_port() -> u16 {
@@ -134,26 +126,15 @@ fn host_rows(dir: &Path) -> Vec<HostRow> {
         .collect()
 }
 
-fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
-    let t0 = Instant::now();
-    while !f() {
-        assert!(
-            t0.elapsed() < limit,
-            "{what} did not happen within {limit:?}"
-        );
-        std::thread::sleep(Duration::from_millis(50));
-    }
-}
-
 /// Small chunks: 4 worlds x 32 steps = 128 env steps a chunk.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
 
 #[test]
 fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
-    let dir = scratch("loop");
-    let far = scratch("loop-far");
+    let dir = TempDir::fresh("loop");
+    let far = TempDir::fresh("loop-far");
     let addr = format!("127.0.0.1:{}", free_port());
-    let mut train = Command::new(bin());
+    let mut train = fulcrum();
     train
         .args([
             "train", "exp2", "--actors", "1", "--steps", "300032", "--listen", &addr,
@@ -165,7 +146,7 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     learner.wait_line("may join", Duration::from_secs(60));
 
     // A host whose world is not the run's is refused before it runs anything.
-    let wrong = Command::new(bin())
+    let wrong = fulcrum()
         .args(["actor-host", "--connect", &addr, "--name", "wrong"])
         .args(["--world", "exp1-tree", "--actors", "1"])
         .arg("--dir")
@@ -181,7 +162,7 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     assert!(!far.join("wrong/config.toml").exists());
 
     // So is a host that asks for another run.
-    let other_run = Command::new(bin())
+    let other_run = fulcrum()
         .args(["actor-host", "--connect", &addr, "--name", "other"])
         .args(["--run-id", "not-this-run", "--actors", "1"])
         .arg("--dir")
@@ -192,7 +173,7 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     assert_eq!(other_run.status.code(), Some(2), "{says}");
     assert!(says.contains("not 'not-this-run'"), "{says}");
 
-    let mut host = Command::new(bin());
+    let mut host = fulcrum();
     host.args([
         "actor-host",
         "--connect",
@@ -249,22 +230,6 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     let _ = std::fs::remove_dir_all(&far);
 }
 
-/// Pids of live processes whose command line contains every needle.
-fn pids_with(needles: &[&str]) -> Vec<u32> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let cmd = std::fs::read(e.path().join("cmdline")).unwrap_or_default();
-        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-        if needles.iter().all(|n| cmd.contains(n)) {
-            out.push(pid);
-        }
-    }
-    out
-}
-
 /// CPU seconds a process has used (user + system; 100 clock ticks a second).
 fn cpu_seconds(pid: u32) -> f64 {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap();
@@ -273,22 +238,14 @@ fn cpu_seconds(pid: u32) -> f64 {
     (f[11].parse::<f64>().unwrap() + f[12].parse::<f64>().unwrap()) / 100.0
 }
 
-fn kill(pid: u32, sig: &str) {
-    assert!(Command::new("kill")
-        .args([sig, &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
-}
-
 #[test]
 fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
-    let dir = scratch("stop");
-    let far = scratch("stop-far");
+    let dir = TempDir::fresh("stop");
+    let far = TempDir::fresh("stop-far");
     let addr = format!("127.0.0.1:{}", free_port());
     // Asynchronous actors: they would run on without waiting for weights, so only
     // backpressure can hold the far one back.
-    let mut train = Command::new(bin());
+    let mut train = fulcrum();
     train
         .args(["train", "exp2", "--actors", "1", "--steps", "99999872"])
         .args(["--listen", &addr, "--max-policy-lag", "1000000"])
@@ -297,7 +254,7 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
         .arg(&dir);
     let mut learner = Proc::start(train);
     learner.wait_line("may join", Duration::from_secs(60));
-    let mut host = Command::new(bin());
+    let mut host = fulcrum();
     host.args([
         "actor-host",
         "--connect",
@@ -323,12 +280,12 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
     let learner_pid = pids_with(&["__learner", &dir.display().to_string()])[0];
     let actor_pid = pids_with(&["__actor", &far.display().to_string()])[0];
 
-    kill(learner_pid, "-STOP");
+    signal(learner_pid, "-STOP");
     std::thread::sleep(Duration::from_secs(1)); // the queues on the way fill up
     let c0 = cpu_seconds(actor_pid);
     std::thread::sleep(Duration::from_secs(3));
     let used = cpu_seconds(actor_pid) - c0;
-    kill(learner_pid, "-CONT");
+    signal(learner_pid, "-CONT");
     // Running freely the far actor would use most of a core here (it steps worlds
     // without waiting for weights); held back, it sleeps.
     assert!(
@@ -339,7 +296,7 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
     wait_until(Duration::from_secs(30), "the far host going on", || {
         far_chunks(&dir) > before + 20
     });
-    kill(learner.child.id(), "-INT");
+    signal(learner.child.id(), "-INT");
     assert_eq!(learner.finish(Duration::from_secs(60)).code(), Some(130));
     assert!(
         host.finish(Duration::from_secs(30)).success(),
@@ -411,9 +368,9 @@ fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
         eprintln!("skipped: the link-cut test needs root, iproute2 and network namespaces");
         return;
     };
-    let dir = scratch("cut");
+    let dir = TempDir::fresh("cut");
     let addr = format!("{}:{}", other.here(), free_port());
-    let mut train = Command::new(bin());
+    let mut train = fulcrum();
     train
         .args([
             "train", "exp2", "--actors", "1", "--steps", "99999872", "--listen", &addr,
@@ -426,7 +383,7 @@ fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
     learner.wait_line("may join", Duration::from_secs(60));
     let mut host = other.script();
     host.arg("exec")
-        .arg(bin())
+        .arg(env!("CARGO_BIN_EXE_fulcrum"))
         .args([
             "actor-host",
             "--connect",
@@ -440,7 +397,7 @@ fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
     let mut host = Proc::start(host);
 
     let joined = |after: u64| {
-        let dir = dir.clone();
+        let dir = dir.to_path_buf();
         move || {
             host_rows(&dir)
                 .iter()
@@ -467,11 +424,7 @@ fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
         joined(u_up),
     );
     // Stop the run (SIGINT: checkpoint, exit 130); the far host stops with it.
-    assert!(Command::new("kill")
-        .args(["-INT", &learner.child.id().to_string()])
-        .status()
-        .unwrap()
-        .success());
+    signal(learner.child.id(), "-INT");
     let s = learner.finish(Duration::from_secs(60));
     assert_eq!(s.code(), Some(130), "{}", learner.text());
     let hs = host.finish(Duration::from_secs(30));

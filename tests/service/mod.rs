@@ -13,14 +13,7 @@ use fulcrum_shared::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
 use fulcrum_shared::{load_world, ObjectSet, State, World};
 use rand::{Rng, SeedableRng};
 
-/// A unique namespace for one test.
-fn namespace(test: &str) -> String {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    format!("t-{test}-{}-{nanos}", std::process::id())
-}
+use crate::util::{fulcrum, namespace};
 
 /// A running `fulcrum serve`, stopped (SIGINT, then SIGKILL) when dropped.
 struct Serve {
@@ -30,7 +23,7 @@ struct Serve {
 
 impl Serve {
     fn start(world: &str, ns: &str, extra: &[&str]) -> Serve {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        let mut child = fulcrum()
             .args(["serve", world, "--namespace", ns])
             .args(extra)
             .stdout(Stdio::piped())
@@ -212,7 +205,7 @@ fn a_wrong_world_client_is_refused() {
         other => panic!("expected WrongWorld, got {other:?}"),
     }
     // Through the CLI: one sentence, exit code 2.
-    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+    let out = fulcrum()
         .args([
             "empowerment",
             "query",
@@ -335,7 +328,7 @@ fn a_second_service_for_a_namespace_refuses_politely() {
         "{}",
         serve.ready
     );
-    let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+    let out = fulcrum()
         .args(["serve", "exp2", "--namespace", &ns])
         .output()
         .unwrap();
@@ -386,10 +379,7 @@ fn query_service_from_the_cli_equals_the_local_query() {
             "--json",
         ];
         args.extend_from_slice(extra);
-        let out = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
-            .args(&args)
-            .output()
-            .unwrap();
+        let out = fulcrum().args(&args).output().unwrap();
         assert!(
             out.status.success(),
             "{}",
@@ -442,7 +432,7 @@ fn a_service_whose_output_reader_left_still_stops_cleanly() {
     // A supervisor may read the service's "ready" line and close the pipe: the final
     // line must not turn SIGINT into a panic or a death by SIGPIPE.
     let ns = namespace("pipe");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+    let mut child = fulcrum()
         .args(["serve", "room", "--namespace", &ns])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
@@ -468,7 +458,7 @@ fn visit_counts_are_shared_by_two_client_processes() {
     let ns = namespace("visits");
     let _serve = Serve::start("room", &ns, &[]);
     let visit = || {
-        Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+        fulcrum()
             .args(["__visit", "--namespace", &ns, "--world", "room"])
             .args(["--state", "agent=2,2", "--times", "300"])
             .stdout(Stdio::piped())

@@ -3,32 +3,20 @@
 //! Every run has its own namespace (the supervisor makes one per launch).
 
 use std::io::Read;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, ExitStatus, Stdio};
+use std::path::Path;
+use std::process::{Child, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use fulcrum_learner::run::{read_metrics, MetricsRow};
 use iceoryx2::prelude::*;
 
-/// A fresh run directory path under the target dir (not created).
-fn run_dir(name: &str) -> PathBuf {
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let d = std::env::temp_dir().join(format!(
-        "fulcrum-train-{name}-{}-{nanos}",
-        std::process::id()
-    ));
-    let _ = std::fs::remove_dir_all(&d);
-    d
-}
+use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 /// Small, fast settings: batch = actors * 4 worlds * 32 steps.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
 
 fn train(args: &[&str]) -> Child {
-    Command::new(env!("CARGO_BIN_EXE_fulcrum"))
+    fulcrum()
         .arg("train")
         .args(args)
         .stdin(Stdio::null())
@@ -80,26 +68,6 @@ fn namespace_of(stderr: &str) -> String {
         .to_string()
 }
 
-/// Pids of live processes whose command line contains every needle.
-fn pids_with(needles: &[&str]) -> Vec<u32> {
-    let mut out = Vec::new();
-    for e in std::fs::read_dir("/proc").unwrap().flatten() {
-        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
-            continue;
-        };
-        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
-            continue;
-        };
-        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
-        let state = std::fs::read_to_string(e.path().join("stat")).unwrap_or_default();
-        let zombie = state.split_whitespace().nth(2) == Some("Z");
-        if !zombie && needles.iter().all(|n| cmd.contains(n)) {
-            out.push(pid);
-        }
-    }
-    out
-}
-
 /// iceoryx2 services whose name contains the namespace.
 fn services_of(ns: &str) -> Vec<String> {
     fulcrum_empowerment::service::quiet_ipc_logs();
@@ -134,23 +102,12 @@ fn assert_nothing_left(ns: &str) {
 }
 
 fn wait_rows(dir: &Path, n: usize, limit: Duration) {
-    let t0 = Instant::now();
-    while read_metrics(&dir.join("metrics.csv"))
-        .map(|r| r.len())
-        .unwrap_or(0)
-        < n
-    {
-        assert!(t0.elapsed() < limit, "no {n} metrics rows after {limit:?}");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-}
-
-fn sig(pid: u32, s: &str) {
-    assert!(Command::new("kill")
-        .args([s, &pid.to_string()])
-        .status()
-        .unwrap()
-        .success());
+    wait_until(limit, &format!("{n} metrics rows"), || {
+        read_metrics(&dir.join("metrics.csv"))
+            .map(|r| r.len())
+            .unwrap_or(0)
+            >= n
+    });
 }
 
 /// Rows are updates 1..=n with env steps growing by the batch each.
@@ -164,7 +121,7 @@ fn assert_contiguous(rows: &[MetricsRow], n: u64, batch: u64) {
 
 #[test]
 fn two_actors_finish_and_leave_nothing_behind() {
-    let dir = run_dir("two");
+    let dir = TempDir::fresh("two");
     let d = dir.to_str().unwrap();
     // 2 actors x 4 worlds x 32 steps = 256 steps an update; 2048 steps = 8 updates.
     let c = train(
@@ -194,7 +151,7 @@ fn two_actors_finish_and_leave_nothing_behind() {
 
 #[test]
 fn a_killed_actor_is_replaced_and_the_run_finishes() {
-    let dir = run_dir("kill");
+    let dir = TempDir::fresh("kill");
     let d = dir.to_str().unwrap();
     // 1000 updates of 256 steps (a few seconds: long enough to kill an actor mid-run).
     let mut c = train(
@@ -221,7 +178,7 @@ fn a_killed_actor_is_replaced_and_the_run_finishes() {
         if c.try_wait().unwrap().is_some() || victims.len() != 1 {
             break;
         }
-        sig(victims[0], "-KILL");
+        signal(victims[0], "-KILL");
         kills += 1;
         let t0 = Instant::now();
         loop {
@@ -258,7 +215,7 @@ fn a_killed_actor_is_replaced_and_the_run_finishes() {
 
 #[test]
 fn sigint_stops_everything_and_resume_continues_the_rows() {
-    let dir = run_dir("sigint");
+    let dir = TempDir::fresh("sigint");
     let d = dir.to_str().unwrap();
     // 1 actor: 128 steps an update; 2000 updates (seconds: long enough to interrupt).
     let c = train(
@@ -280,7 +237,7 @@ fn sigint_stops_everything_and_resume_continues_the_rows() {
     );
     wait_rows(&dir, 4, Duration::from_secs(60));
     let pid = c.id();
-    sig(pid, "-INT");
+    signal(pid, "-INT");
     let t0 = Instant::now();
     let (status, err, _) = finish(c, Duration::from_secs(30));
     assert!(
@@ -343,8 +300,8 @@ fn resumes_are_bit_for_bit_with_every_new_option() {
 }
 
 fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
-    let a = run_dir(&format!("{tag}-a"));
-    let b = run_dir(&format!("{tag}-b"));
+    let a = TempDir::fresh(&format!("{tag}-a"));
+    let b = TempDir::fresh(&format!("{tag}-b"));
     // Synchronous, one actor, with empowerment: 6 updates of 128 steps.
     let common = [
         &["room", "--actors", "1", "--steps", "768", "--seed", "7"][..],
@@ -406,7 +363,7 @@ fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
 
 #[test]
 fn bad_training_settings_are_refused_before_anything_starts() {
-    let dir = run_dir("bad");
+    let dir = TempDir::fresh("bad");
     let d = dir.to_str().unwrap();
     for (args, needle) in [
         (vec!["room", "--beta", "-1", "--out", d], "--beta"),
@@ -486,7 +443,7 @@ fn children_with(parent: u32, needle: &str) -> Vec<u32> {
 
 #[test]
 fn a_killed_service_is_restarted_and_actors_resume() {
-    let dir = run_dir("service");
+    let dir = TempDir::fresh("service");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -498,7 +455,7 @@ fn a_killed_service_is_restarted_and_actors_resume() {
     wait_rows(&dir, 3, Duration::from_secs(60));
     let svc = children_with(c.id(), "serve");
     assert_eq!(svc.len(), 1, "one service: {svc:?}");
-    sig(svc[0], "-KILL");
+    signal(svc[0], "-KILL");
     let (status, err, _) = finish(c, Duration::from_secs(180));
     assert!(status.success(), "{err}");
     assert!(
@@ -516,7 +473,7 @@ fn a_killed_service_is_restarted_and_actors_resume() {
 
 #[test]
 fn a_killed_learner_ends_the_run_with_a_resumable_checkpoint() {
-    let dir = run_dir("learner");
+    let dir = TempDir::fresh("learner");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -539,7 +496,7 @@ fn a_killed_learner_ends_the_run_with_a_resumable_checkpoint() {
     wait_rows(&dir, 12, Duration::from_secs(60));
     let l = children_with(c.id(), "__learner");
     assert_eq!(l.len(), 1);
-    sig(l[0], "-KILL");
+    signal(l[0], "-KILL");
     let (status, err, _) = finish(c, Duration::from_secs(30));
     assert_eq!(status.code(), Some(1), "{err}");
     assert!(err.contains("the learner failed (signal 9)"), "{err}");
@@ -558,7 +515,7 @@ fn a_killed_learner_ends_the_run_with_a_resumable_checkpoint() {
 
 #[test]
 fn asynchronous_actors_record_their_policy_lag() {
-    let dir = run_dir("async");
+    let dir = TempDir::fresh("async");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -594,7 +551,7 @@ fn asynchronous_actors_record_their_policy_lag() {
 #[test]
 fn the_whole_system_learns_the_room() {
     for arm in [&[][..], &["--no-empowerment"][..]] {
-        let dir = run_dir("learn");
+        let dir = TempDir::fresh("learn");
         let d = dir.to_str().unwrap();
         let args = [
             &[
@@ -628,7 +585,7 @@ fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
         "horizon-potential",
         "first-visit",
     ] {
-        let dir = run_dir(form);
+        let dir = TempDir::fresh(form);
         let d = dir.to_str().unwrap();
         let c = train(
             &[
@@ -689,7 +646,7 @@ fn every_intrinsic_form_trains_with_two_actors_and_logs_its_diagnostics() {
 
 #[test]
 fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
-    let dir = run_dir("fixed");
+    let dir = TempDir::fresh("fixed");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -729,7 +686,7 @@ fn cpu_s(pid: u32) -> f64 {
 
 #[test]
 fn a_stopped_learner_blocks_actors_without_burning_a_core_or_losing_chunks() {
-    let dir = run_dir("sigstop");
+    let dir = TempDir::fresh("sigstop");
     let d = dir.to_str().unwrap();
     // Asynchronous actors: they keep producing until the learner's queue is full, then
     // wait under backpressure.
@@ -746,7 +703,7 @@ fn a_stopped_learner_blocks_actors_without_burning_a_core_or_losing_chunks() {
     assert_eq!(l.len(), 1);
     let actors = children_with(c.id(), "__actor");
     assert_eq!(actors.len(), 2);
-    sig(l[0], "-STOP");
+    signal(l[0], "-STOP");
     // Let the queue fill, then measure the actors' CPU over 2 s.
     std::thread::sleep(Duration::from_millis(1000));
     let rows_stopped = read_metrics(&dir.join("metrics.csv")).unwrap().len();
@@ -762,7 +719,7 @@ fn a_stopped_learner_blocks_actors_without_burning_a_core_or_losing_chunks() {
         read_metrics(&dir.join("metrics.csv")).unwrap().len(),
         rows_stopped
     );
-    sig(l[0], "-CONT");
+    signal(l[0], "-CONT");
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
@@ -774,7 +731,7 @@ fn a_stopped_learner_blocks_actors_without_burning_a_core_or_losing_chunks() {
 
 #[test]
 fn a_killed_supervisor_takes_its_children_and_the_run_resumes() {
-    let dir = run_dir("supervisor");
+    let dir = TempDir::fresh("supervisor");
     let d = dir.to_str().unwrap();
     let mut c = train(
         &[
@@ -786,7 +743,7 @@ fn a_killed_supervisor_takes_its_children_and_the_run_resumes() {
     );
     wait_rows(&dir, 12, Duration::from_secs(60));
     // The supervisor's stderr names the namespace; read it after the kill.
-    sig(c.id(), "-KILL");
+    signal(c.id(), "-KILL");
     let _ = c.wait();
     let mut err = String::new();
     let _ = c.stderr.take().unwrap().read_to_string(&mut err);
@@ -841,7 +798,7 @@ fn shared_files_not_owner_only(dir: &Path) -> (usize, Vec<String>) {
 
 #[test]
 fn shared_memory_of_a_run_is_owner_only() {
-    let dir = run_dir("modes");
+    let dir = TempDir::fresh("modes");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -870,7 +827,7 @@ fn shared_memory_of_a_run_is_owner_only() {
 
 #[test]
 fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
-    let dir = run_dir("damaged");
+    let dir = TempDir::fresh("damaged");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -917,7 +874,7 @@ fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
 /// setting is refused on --resume before anything starts (exit 2, one sentence).
 #[test]
 fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
-    let dir = run_dir("mask-flip");
+    let dir = TempDir::fresh("mask-flip");
     let d = dir.to_str().unwrap();
     let (s, err, _) = finish(
         train(
@@ -950,7 +907,7 @@ fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
 
 #[test]
 fn a_torn_metrics_row_is_dropped_on_resume() {
-    let dir = run_dir("torn");
+    let dir = TempDir::fresh("torn");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -998,7 +955,7 @@ fn socket_inodes(pid: u32) -> Vec<String> {
 
 #[test]
 fn nothing_of_a_run_uses_a_network_socket() {
-    let dir = run_dir("net");
+    let dir = TempDir::fresh("net");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -1035,7 +992,7 @@ fn nothing_of_a_run_uses_a_network_socket() {
 fn chunks_of_another_run_or_world_are_refused_and_counted() {
     use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
     fulcrum_empowerment::service::quiet_ipc_logs();
-    let dir = run_dir("foreign");
+    let dir = TempDir::fresh("foreign");
     let d = dir.to_str().unwrap();
     let c = train(
         &[
@@ -1125,7 +1082,7 @@ fn chunks_of_another_run_or_world_are_refused_and_counted() {
 
 #[test]
 fn a_failed_checkpoint_write_ends_the_run_clearly_and_keeps_the_last_one() {
-    let dir = run_dir("ckfail");
+    let dir = TempDir::fresh("ckfail");
     let d = dir.to_str().unwrap();
     let c = train(
         &[

@@ -26,7 +26,8 @@ use fulcrum_shared::load_world;
 use fulcrum_shared::msg::{kind, EmpRequest, EmpResponse};
 use fulcrum_shared::traj::ChunkHeader;
 
-use super::{percentile, sample_states, Figure, ServeChild};
+use super::service::{sample_states, ServeChild};
+use super::{percentile, Figure};
 use fulcrum_bridge::{locator, open_session, serve_lookups, BridgeStats, Forwarder, ZenohOptions};
 use fulcrum_run::process::{install_signal_handlers, STOP};
 

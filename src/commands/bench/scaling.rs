@@ -58,7 +58,7 @@ fn training(plots: &Path, figs: &mut Vec<Figure>) -> Result<()> {
             ));
             let steps = UPDATES * (a * e * 128) as u64;
             let t0 = Instant::now();
-            let (sps, _) = super::train_sps(
+            let (sps, _) = super::training::train_sps(
                 &[
                     "exp1-tree",
                     "--steps",

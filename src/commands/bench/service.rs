@@ -1,0 +1,330 @@
+//! The service's figures: lookup latency and throughput over iceoryx2, the shared-memory
+//! ping-pong floor, and the hidden client processes they use.
+
+use std::time::Instant;
+
+use anyhow::{ensure, Context, Result};
+use fulcrum_empowerment::{Engine, Limits, ToolSel};
+use fulcrum_run::process::{spawn_until_ready, Ready};
+use fulcrum_shared::load_world;
+
+use super::{cpu_seconds, percentile, Figure};
+
+/// A child `fulcrum serve`, stopped with SIGINT when dropped.
+pub(super) struct ServeChild(std::process::Child);
+
+impl ServeChild {
+    pub(super) fn start(world: &str, ns: &str) -> Result<ServeChild> {
+        let mut cmd = std::process::Command::new(std::env::current_exe()?);
+        cmd.args(["serve", world, "--namespace", ns])
+            .stderr(std::process::Stdio::null());
+        match spawn_until_ready(cmd, "fulcrum serve", None)? {
+            Ready::Ready(child, (), _) => Ok(ServeChild(child)),
+            Ready::Stopped => anyhow::bail!("stopped before fulcrum serve {world} was ready"),
+            Ready::Exited(_) => anyhow::bail!("fulcrum serve {world} exited before it was ready"),
+        }
+    }
+}
+
+impl Drop for ServeChild {
+    fn drop(&mut self) {
+        let _ = std::process::Command::new("kill")
+            .args(["-INT", &self.0.id().to_string()])
+            .status();
+        let t0 = Instant::now();
+        while t0.elapsed() < std::time::Duration::from_secs(5) {
+            if let Ok(Some(_)) = self.0.try_wait() {
+                return;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        }
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Sample states of a space, seeded.
+pub(super) fn sample_states(e: &Engine, n: usize) -> Vec<fulcrum_shared::State> {
+    let step = (e.space.len() / n).max(1);
+    (0..n)
+        .map(|i| *e.space.state(((i * step) % e.space.len()) as u32))
+        .collect()
+}
+
+/// The service: round-trip latency, lookup throughput with 1 and 2 client processes,
+/// and the two floors (in-process lookups, a Unix datagram ping-pong).
+pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use fulcrum_empowerment::service::{Ask, Client, ServeConfig, Tables};
+    let world = "exp2";
+    let w = load_world(world)?;
+    let ns = format!("bench-{}", std::process::id());
+    let serve = ServeChild::start(world, &ns)?;
+    let mut c = Client::connect(&ns, &w, std::time::Duration::from_secs(30))?;
+    let e = Engine::new(&w, Limits::default())?;
+    let batch256 = sample_states(&e, 256);
+    let rounds = if quick { 2000 } else { 20000 };
+    for (label, states) in [("1 state", &batch256[..1]), ("256 states", &batch256[..])] {
+        let mut t = Vec::with_capacity(rounds);
+        for _ in 0..rounds {
+            let t0 = Instant::now();
+            c.submit(Ask::Lookup, states)?;
+            let b = c.recv()?;
+            t.push(t0.elapsed().as_secs_f64() * 1e6);
+            ensure!(b.status.iter().all(|&s| s == 0), "lookup failed");
+        }
+        t.sort_by(|a, b| a.total_cmp(b));
+        figs.push(Figure {
+            zero_ok: false,
+            name: format!("service round trip p50, {label}"),
+            value: percentile(&t, 0.5),
+            unit: "us",
+            note: format!("({rounds} requests, exp2)"),
+        });
+        figs.push(Figure {
+            zero_ok: false,
+            name: format!("service round trip p99, {label}"),
+            value: percentile(&t, 0.99),
+            unit: "us",
+            note: String::new(),
+        });
+    }
+    // After an idle gap the service has stopped spinning and sleeps on its listener:
+    // this round trip pays the event wake-up, the figure to set against the floor.
+    let gapped = rounds / 10;
+    let mut t = Vec::with_capacity(gapped);
+    for _ in 0..gapped {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+        let t0 = Instant::now();
+        c.submit(Ask::Lookup, &batch256[..1])?;
+        c.recv()?;
+        t.push(t0.elapsed().as_secs_f64() * 1e6);
+    }
+    t.sort_by(|a, b| a.total_cmp(b));
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service round trip p50, 1 state, after 1 ms idle".into(),
+        value: percentile(&t, 0.5),
+        unit: "us",
+        note: format!(
+            "({gapped} requests; the service sleeps on its event, as in the ping-pong floor)"
+        ),
+    });
+    // Throughput, one client in this process, pipelined batches of 256.
+    let secs = if quick { 1.0 } else { 3.0 };
+    let n1 = lookup_for(&mut c, &batch256, secs)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service lookups/s, 1 client, batches of 256".into(),
+        value: n1 / secs,
+        unit: "states/s",
+        note: "(pipelined, 4 requests in flight; goal >= 5M)".into(),
+    });
+    drop(c);
+    // Two client processes at once.
+    let exe = std::env::current_exe()?;
+    let kids: Vec<std::process::Child> = (0..2)
+        .map(|_| {
+            std::process::Command::new(&exe)
+                .args([
+                    "__bench-client",
+                    "--namespace",
+                    &ns,
+                    "--world",
+                    world,
+                    "--seconds",
+                    &secs.to_string(),
+                    "--batch",
+                    "256",
+                ])
+                .stdout(std::process::Stdio::piped())
+                .spawn()
+        })
+        .collect::<std::io::Result<_>>()?;
+    let mut total = 0.0;
+    for k in kids {
+        let out = k.wait_with_output()?;
+        ensure!(out.status.success(), "a bench client failed");
+        total += String::from_utf8_lossy(&out.stdout)
+            .trim()
+            .parse::<f64>()
+            .context("bench client output")?;
+    }
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service lookups/s, 2 client processes".into(),
+        value: total / secs,
+        unit: "states/s",
+        note: "(each pipelined, batches of 256)".into(),
+    });
+    // Idle: the service blocks on its listener once its short spin is over.
+    let idle = if quick { 0.5 } else { 2.0 };
+    std::thread::sleep(std::time::Duration::from_millis(100));
+    let before = cpu_seconds(serve.0.id());
+    std::thread::sleep(std::time::Duration::from_secs_f64(idle));
+    let used = cpu_seconds(serve.0.id()) - before;
+    figs.push(Figure {
+        zero_ok: true,
+        name: "service CPU while idle".into(),
+        value: used / idle * 100.0,
+        unit: "% of a core",
+        note: format!("({used:.2} s of CPU in {idle} s idle, 10 ms clock ticks)"),
+    });
+    // Floor 1: the same lookups in-process, no IPC.
+    let cfg = ServeConfig {
+        horizon_sum: false,
+        namespace: "unused".into(),
+        tool: ToolSel::Tool(0),
+        objects: w
+            .empowerment
+            .objects
+            .clone()
+            .context("exp2 names objects")?,
+        horizon_unequipped: 5,
+        horizon_equipped: 6,
+        cache_bytes: 1 << 20,
+        spin: std::time::Duration::ZERO,
+    };
+    let mut tables = Tables::new(Engine::new(&w, Limits::default())?, cfg)?;
+    let mut req = Box::new(fulcrum_shared::msg::EmpRequest {
+        world_hash: w.content_hash(),
+        kind: fulcrum_shared::msg::kind::LOOKUP,
+        count: 256,
+        tool: 0,
+        horizon: 0,
+        objects: 0,
+        seq: 0,
+        states: [[0; fulcrum_shared::msg::STATE_BYTES]; fulcrum_shared::msg::MAX_BATCH],
+    });
+    for (i, s) in batch256.iter().enumerate() {
+        req.states[i] = s.to_bytes();
+    }
+    let mut resp = Box::new(zeroed_response());
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    while t0.elapsed().as_secs_f64() < secs / 2.0 {
+        for _ in 0..100 {
+            tables.answer(&req, &mut resp);
+            n += 256;
+        }
+    }
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: in-process lookups/s".into(),
+        value: n as f64 / t0.elapsed().as_secs_f64(),
+        unit: "states/s",
+        note: "(the service's own answer loop, no IPC)".into(),
+    });
+    // Floor 2: a Unix datagram ping-pong between two processes.
+    let p50_gap = pingpong_p50(rounds / 10, true)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: Unix datagram ping-pong p50, after 1 ms idle".into(),
+        value: p50_gap,
+        unit: "us",
+        note: "(the same with a 1 ms pause before each ping)".into(),
+    });
+    let p50 = pingpong_p50(rounds, false)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: Unix datagram ping-pong p50".into(),
+        value: p50,
+        unit: "us",
+        note: "(two processes, 8-byte messages: the cross-CPU wake-up)".into(),
+    });
+    Ok(())
+}
+
+/// An all-zero response (valid: plain data).
+pub(super) fn zeroed_response() -> fulcrum_shared::msg::EmpResponse {
+    // SAFETY: EmpResponse is plain integers, floats and bytes; all-zero is a valid value.
+    unsafe { std::mem::zeroed() }
+}
+
+/// Look up `states` repeatedly for `secs`, pipelined; returns states answered.
+pub(super) fn lookup_for(
+    c: &mut fulcrum_empowerment::service::Client,
+    states: &[fulcrum_shared::State],
+    secs: f64,
+) -> Result<f64> {
+    use fulcrum_empowerment::service::Ask;
+    let big: Vec<fulcrum_shared::State> = states
+        .iter()
+        .cycle()
+        .take(states.len() * 64)
+        .copied()
+        .collect();
+    let t0 = Instant::now();
+    let mut n = 0usize;
+    while t0.elapsed().as_secs_f64() < secs {
+        let b = c.values(Ask::Lookup, &big, 256)?;
+        n += b.values.len();
+    }
+    Ok(n as f64 * secs / t0.elapsed().as_secs_f64())
+}
+
+/// `fulcrum __bench-client`: look states up for a while, print how many.
+pub fn client_process(ns: &str, world: &str, secs: f64, batch: usize) -> Result<()> {
+    let w = load_world(world)?;
+    let e = Engine::new(&w, Limits::default())?;
+    let mut c =
+        fulcrum_empowerment::service::Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
+    let states = sample_states(&e, batch.max(1));
+    let n = lookup_for(&mut c, &states, secs)?;
+    println!("{n}");
+    Ok(())
+}
+
+/// `fulcrum __pingpong PATH`: echo datagrams back to their sender until an empty one.
+pub fn pingpong_echo(path: &std::path::Path) -> Result<()> {
+    let sock = std::os::unix::net::UnixDatagram::bind(path)?;
+    let mut buf = [0u8; 64];
+    loop {
+        let (n, from) = sock.recv_from(&mut buf)?;
+        if n == 0 {
+            return Ok(());
+        }
+        if let Some(p) = from.as_pathname() {
+            sock.send_to(&buf[..n], p)?;
+        }
+    }
+}
+
+/// Median round trip of 8-byte datagrams to a child echo process, in microseconds.
+pub(super) fn pingpong_p50(rounds: usize, gap: bool) -> Result<f64> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-pingpong-{}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let (theirs, ours) = (dir.join("echo"), dir.join("me"));
+    let _ = std::fs::remove_file(&theirs);
+    let _ = std::fs::remove_file(&ours);
+    let mut child = std::process::Command::new(std::env::current_exe()?)
+        .arg("__pingpong")
+        .arg(&theirs)
+        .spawn()?;
+    let sock = std::os::unix::net::UnixDatagram::bind(&ours)?;
+    let t0 = Instant::now();
+    while !theirs.exists() {
+        ensure!(
+            t0.elapsed().as_secs() < 10,
+            "the ping-pong echo did not start"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    let mut buf = [0u8; 64];
+    let mut t = Vec::with_capacity(rounds);
+    for i in 0..rounds + 100 {
+        if gap {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        let t0 = Instant::now();
+        sock.send_to(&(i as u64).to_le_bytes(), &theirs)?;
+        sock.recv(&mut buf)?;
+        if i >= 100 {
+            t.push(t0.elapsed().as_secs_f64() * 1e6);
+        }
+    }
+    sock.send_to(&[], &theirs)?;
+    let _ = child.wait();
+    let _ = std::fs::remove_dir_all(&dir);
+    t.sort_by(|a, b| a.total_cmp(b));
+    Ok(percentile(&t, 0.5))
+}

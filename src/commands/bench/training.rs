@@ -1,0 +1,335 @@
+//! Training's figures: update speed, chunk transport, end-to-end steps per second and
+//! the time to solve exp1-tree.
+
+use std::time::Instant;
+
+use anyhow::{ensure, Context, Result};
+use fulcrum_shared::load_world;
+
+use super::{median_ms, Figure};
+
+/// Training pieces: world steps per second on one core (with observation encoding) and
+/// learner samples x epochs per second (one PPO update, CleanRL's defaults).
+pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use rand::{Rng, SeedableRng};
+    let w = load_world("exp1-tree")?;
+    let spec = w.obs_spec();
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let actions: Vec<u8> = (0..4096)
+        .map(|_| rng.random_range(0..w.num_actions() as u8))
+        .collect();
+    let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
+    let steps = if quick { 2_000_000 } else { 20_000_000 };
+    let mut ep = w.reset();
+    w.observe(&ep.state, &mut g, &mut f);
+    let mut done = 0u64;
+    let t0 = Instant::now();
+    for i in 0..steps {
+        let prev = ep.state;
+        let out = w.env_step(&mut ep, actions[i % actions.len()]);
+        w.observe_update(&prev, &ep.state, &mut g, &mut f);
+        if out.terminated || out.truncated {
+            done += 1;
+            let last = ep.state;
+            ep = w.reset();
+            w.observe_update(&last, &ep.state, &mut g, &mut f);
+        }
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    ensure!(
+        done > 0 && g.iter().any(|&x| x != 0),
+        "the world did not run"
+    );
+    figs.push(Figure {
+        zero_ok: false,
+        name: "world steps/s, one core, with observation".into(),
+        value: steps as f64 / secs,
+        unit: "steps/s",
+        note: format!(
+            "(exp1-tree, random actions, {done} episodes, incremental observation; goal >= 20M)"
+        ),
+    });
+    // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
+    let shape = fulcrum_learner::local::shape_for(&w, 64);
+    let net = fulcrum_learner::net::Net::new(shape, 1, &candle_core::Device::Cpu)?;
+    let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+    let n = 1024;
+    let mut glyphs = vec![0u8; n * spec.cells()];
+    let mut flags = vec![0u8; n * spec.flags];
+    let mut ep = w.reset();
+    for i in 0..n {
+        w.env_step(&mut ep, actions[i]);
+        w.observe(
+            &ep.state,
+            &mut glyphs[i * spec.cells()..(i + 1) * spec.cells()],
+            &mut flags[i * spec.flags..(i + 1) * spec.flags],
+        );
+    }
+    let acts: Vec<u32> = actions[..n].iter().map(|&a| a as u32).collect();
+    let lp = vec![-(w.num_actions() as f32).ln(); n];
+    let vals = vec![0.0f32; n];
+    let adv: Vec<f32> = (0..n)
+        .map(|i| ((i * 37) % 11) as f32 / 10.0 - 0.5)
+        .collect();
+    let ret: Vec<f32> = adv.clone();
+    let cfg = fulcrum_learner::ppo::PpoConfig::default();
+    let data = fulcrum_learner::local::UpdateData {
+        glyphs: &glyphs,
+        flags: &flags,
+        actions: &acts,
+        logprobs: &lp,
+        values: &vals,
+        advantages: &adv,
+        returns: &ret,
+        action_mask: false,
+        int: None,
+    };
+    let reps = if quick { 3 } else { 11 };
+    let (ms, stats) = median_ms(reps, || {
+        Ok(fulcrum_learner::local::update(
+            &net, &mut adam, &cfg, 2.5e-4, &mut rng, &data,
+        )?)
+    })?;
+    ensure!(stats.value_loss.is_finite(), "the update diverged");
+    figs.push(Figure {
+        zero_ok: false,
+        name: "learner samples x epochs/s".into(),
+        value: (n * cfg.epochs) as f64 / (ms / 1e3),
+        unit: "samples/s",
+        note: format!("(PPO update: {n} samples, {} epochs x {} minibatches, hidden 64, exp1-tree obs; goal >= 200k)", cfg.epochs, cfg.minibatches),
+    });
+    Ok(())
+}
+
+/// Trajectory chunks through iceoryx2 shared memory, with the run's own service
+/// builders: loan a chunk, write every byte of it (as an actor does), send it, receive
+/// it on a second node and copy it out (as the learner does). One thread alternates
+/// the two sides, so the figure is the cost of the path itself, not of waiting on a
+/// full queue (a full queue makes a publisher back off, by design).
+pub(super) fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
+    use iceoryx2::prelude::*;
+    let w = load_world("exp1-tree")?;
+    let spec = w.obs_spec();
+    let node = || {
+        NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+    };
+    let (pn, sn) = (node()?, node()?);
+    let mut notes = Vec::new();
+    let mut best = 0.0f64;
+    // The default chunk of `fulcrum train exp1-tree` (8 worlds x 128 steps), and a big one.
+    for (envs, steps) in [(8usize, 128usize), (64, 128)] {
+        let layout = ChunkLayout {
+            envs,
+            steps,
+            cells: spec.cells(),
+            flags: spec.flags,
+        };
+        let bytes = layout.bytes();
+        let names = TrainNames::new(&format!("bench-chunks-{}-{envs}", std::process::id()));
+        let psvc = traj::trajectory_service(&pn, &names).map_err(anyhow::Error::msg)?;
+        let ssvc = traj::trajectory_service(&sn, &names).map_err(anyhow::Error::msg)?;
+        let publisher = psvc
+            .publisher_builder()
+            .initial_max_slice_len(bytes)
+            .max_loaned_samples(2)
+            .create()?;
+        let sub = ssvc.subscriber_builder().create()?;
+        let mut buf: Vec<u8> = Vec::with_capacity(bytes);
+        let mut one = |k: u64| -> Result<u8> {
+            let mut s = publisher.loan_slice(bytes)?;
+            let b: &mut [u8] = s.payload_mut();
+            b.fill(k as u8);
+            *s.user_header_mut() = ChunkHeader {
+                seq: k,
+                len: bytes as u64,
+                ..ChunkHeader::default()
+            };
+            s.send()?;
+            let r = sub.receive()?.context("a sent chunk did not arrive")?;
+            buf.clear();
+            buf.extend_from_slice(r.payload());
+            Ok(buf[bytes / 2])
+        };
+        for k in 0..10 {
+            one(k)?;
+        }
+        let target = if quick { 0.3 } else { 1.0 };
+        let t0 = Instant::now();
+        let mut k = 0u64;
+        while t0.elapsed().as_secs_f64() < target {
+            ensure!(one(k)? == k as u8, "a chunk arrived with other bytes");
+            k += 1;
+        }
+        let gbs = k as f64 * bytes as f64 / t0.elapsed().as_secs_f64() / 1e9;
+        if envs == 8 {
+            best = gbs;
+        }
+        notes.push(format!("{} KiB: {gbs:.2} GB/s", bytes / 1024));
+    }
+    figs.push(Figure {
+        zero_ok: false,
+        name: "chunk transport".into(),
+        value: best,
+        unit: "GB/s",
+        note: format!(
+            "(exp1-tree chunks, loan + write every byte + send + receive + copy out; {})",
+            notes.join(", ")
+        ),
+    });
+    Ok(())
+}
+
+/// `fulcrum train ARGS --out DIR`, no input, output to nowhere.
+pub(super) fn train_command(args: &[&str], dir: &std::path::Path) -> Result<std::process::Command> {
+    let mut c = std::process::Command::new(std::env::current_exe()?);
+    c.arg("train")
+        .args(args)
+        .arg("--out")
+        .arg(dir)
+        .stdin(std::process::Stdio::null())
+        .stdout(std::process::Stdio::null());
+    Ok(c)
+}
+
+/// Runs `fulcrum train ARGS --out DIR` (then removes DIR) and returns the env steps per
+/// second of each update after the first (which pays for start-up), and the run's
+/// resolved configuration.
+pub(super) fn train_sps(
+    args: &[&str],
+    dir: &std::path::Path,
+) -> Result<(Vec<f64>, fulcrum_learner::config::RunConfig)> {
+    let _ = std::fs::remove_dir_all(dir);
+    let out = train_command(args, dir)?
+        .stderr(std::process::Stdio::piped())
+        .output()?;
+    ensure!(
+        out.status.success(),
+        "fulcrum train {} failed: {}",
+        args.join(" "),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = fulcrum_learner::run::read_metrics(&dir.join("metrics.csv"))?;
+    let cfg = fulcrum_learner::config::RunConfig::load(&dir.join("config.toml"))
+        .map_err(anyhow::Error::msg)?;
+    let _ = std::fs::remove_dir_all(dir);
+    let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
+    ensure!(!sps.is_empty(), "the run made too few updates");
+    Ok((sps, cfg))
+}
+
+/// End-to-end `fulcrum train exp1-tree` with empowerment: env steps per second of the
+/// learner's updates (median over updates after the first), defaults for this machine.
+pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
+    // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
+    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let steps = if quick { 16 } else { 100 } * batch;
+    let (mut sps, cfg) = train_sps(&["exp1-tree", "--steps", &steps.to_string()], &dir)?;
+    sps.sort_by(f64::total_cmp);
+    figs.push(Figure {
+        zero_ok: false,
+        name: "end-to-end training env steps/s".into(),
+        value: sps[sps.len() / 2],
+        unit: "steps/s",
+        note: format!(
+            "(train exp1-tree, beta {}, {} actor(s) x {} worlds, {} learner thread(s), median of {} updates; goal >= 50k)",
+            cfg.beta,
+            cfg.actors,
+            cfg.envs_per_actor,
+            cfg.learner_threads,
+            sps.len()
+        ),
+    });
+    Ok(())
+}
+
+/// Seconds from `fulcrum train exp1-tree` being started to the first update at which the
+/// success rate, pooled over 10 updates as `fulcrum experiment` pools it, reaches 0.9;
+/// and the env steps by then. The run is then stopped (SIGINT, as a user would). `None`
+/// when the budget ends first.
+pub(super) fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>> {
+    use fulcrum_run::stats::{smooth, steps_to, Point};
+    let _ = std::fs::remove_dir_all(dir);
+    let t0 = Instant::now();
+    let mut child = train_command(args, dir)?
+        .stderr(std::process::Stdio::null())
+        .spawn()?;
+    let metrics = dir.join("metrics.csv");
+    let solved = loop {
+        let done = child.try_wait()?;
+        let rows = fulcrum_learner::run::read_metrics(&metrics).unwrap_or_default();
+        let pts: Vec<Point> = rows.iter().map(Point::from).collect();
+        if let Some(steps) = steps_to(&smooth(&pts, 10), 0.9) {
+            break Some((t0.elapsed().as_secs_f64(), steps));
+        }
+        if let Some(status) = done {
+            ensure!(status.success(), "fulcrum train {} failed", args.join(" "));
+            break None;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(10));
+    };
+    // SAFETY: kill(2) on our own child's pid.
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGINT);
+    }
+    child.wait()?;
+    let _ = std::fs::remove_dir_all(dir);
+    Ok(solved)
+}
+
+/// Time to solve exp1-tree with train's defaults (the additive bonus of the world file,
+/// masking on), five seeds: median wall seconds and env steps to a success rate of 0.9.
+/// A seed that does not get there within the budget counts at the budget.
+pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-bench-solve-{}", std::process::id()));
+    let budget = 499_712u64;
+    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let steps = budget.div_ceil(batch) * batch;
+    let (mut secs, mut env) = (Vec::new(), Vec::new());
+    let mut solved = 0;
+    for seed in 1..=5 {
+        let seed = seed.to_string();
+        let steps = steps.to_string();
+        let t0 = Instant::now();
+        match solve_once(&["exp1-tree", "--seed", &seed, "--steps", &steps], &dir)? {
+            Some((s, e)) => {
+                solved += 1;
+                secs.push(s);
+                env.push(e);
+            }
+            None => {
+                secs.push(t0.elapsed().as_secs_f64());
+                env.push(budget as f64);
+            }
+        }
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let list =
+        |v: &[f64], f: fn(f64) -> String| v.iter().map(|&x| f(x)).collect::<Vec<_>>().join(" ");
+    let note = format!(
+        "(train exp1-tree defaults, seeds 1-5, {solved}/5 solved; sorted: {} s, {} steps; goal <= 10 s)",
+        list(&{ let mut v = secs.clone(); v.sort_by(f64::total_cmp); v }, |x| format!("{x:.1}")),
+        list(&{ let mut v = env.clone(); v.sort_by(f64::total_cmp); v }, |x| format!("{:.0}k", x / 1e3)),
+    );
+    figs.push(Figure {
+        zero_ok: false,
+        name: "exp1-tree time to 0.9 success, wall clock".into(),
+        value: median(&mut secs),
+        unit: "s",
+        note: note.clone(),
+    });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "exp1-tree env steps to 0.9 success".into(),
+        value: median(&mut env),
+        unit: "steps",
+        note: "(the same runs: steps of the first update whose success, pooled over 10 updates, reached 0.9)".into(),
+    });
+    Ok(())
+}

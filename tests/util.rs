@@ -1,0 +1,129 @@
+//! The one test toolkit: one way to start the binary, one temporary directory that
+//! cleans up after itself, unique iceoryx2 namespaces, and the process helpers the
+//! tests of real processes share.
+
+use std::ops::Deref;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+/// The `fulcrum` binary under test, with stdin closed.
+pub fn fulcrum() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_fulcrum"));
+    c.stdin(Stdio::null());
+    c
+}
+
+/// Runs `fulcrum args` to its end.
+pub fn run(args: &[&str]) -> Output {
+    fulcrum()
+        .args(args)
+        .output()
+        .expect("the fulcrum binary runs")
+}
+
+/// A name no other test (of this or another test process) uses at the same time:
+/// `<prefix>-<tag>-<pid>-<nanos>-<counter>`.
+fn unique(prefix: &str, tag: &str) -> String {
+    static N: AtomicU64 = AtomicU64::new(0);
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    format!(
+        "{prefix}-{tag}-{}-{nanos}-{}",
+        std::process::id(),
+        N.fetch_add(1, Ordering::Relaxed)
+    )
+}
+
+/// A unique iceoryx2 namespace for one test.
+pub fn namespace(tag: &str) -> String {
+    unique("t", tag)
+}
+
+/// A directory under the system's temporary directory, removed with everything in it
+/// when dropped. Derefs to its path.
+#[derive(Debug)]
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    /// A new, empty directory.
+    pub fn new(tag: &str) -> TempDir {
+        let d = TempDir::fresh(tag);
+        std::fs::create_dir_all(&d.0).expect("the temporary directory can be made");
+        d
+    }
+
+    /// A path that does not exist yet (for a command that makes it), removed when
+    /// dropped.
+    pub fn fresh(tag: &str) -> TempDir {
+        let d = std::env::temp_dir().join(unique("fulcrum-test", tag));
+        let _ = std::fs::remove_dir_all(&d);
+        TempDir(d)
+    }
+}
+
+impl Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<std::ffi::OsStr> for TempDir {
+    fn as_ref(&self) -> &std::ffi::OsStr {
+        self.0.as_os_str()
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// Pids of live (not zombie) processes whose command line contains every needle.
+pub fn pids_with(needles: &[&str]) -> Vec<u32> {
+    let mut out = Vec::new();
+    for e in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = e.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(cmd) = std::fs::read(e.path().join("cmdline")) else {
+            continue;
+        };
+        let cmd = String::from_utf8_lossy(&cmd).replace('\0', " ");
+        let state = std::fs::read_to_string(e.path().join("stat")).unwrap_or_default();
+        let zombie = state.split_whitespace().nth(2) == Some("Z");
+        if !zombie && needles.iter().all(|n| cmd.contains(n)) {
+            out.push(pid);
+        }
+    }
+    out
+}
+
+/// Sends signal `sig` (as `kill` spells it: `-INT`, `-KILL`, ...) to `pid`.
+pub fn signal(pid: u32, sig: &str) {
+    assert!(Command::new("kill")
+        .args([sig, &pid.to_string()])
+        .status()
+        .unwrap()
+        .success());
+}
+
+/// Waits until `f` holds, failing the test with `what` after `limit`.
+pub fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
+    let t0 = Instant::now();
+    while !f() {
+        assert!(t0.elapsed() < limit, "{what}: not after {limit:?}");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
