@@ -30,7 +30,6 @@ pub mod error;
 pub mod limits;
 /// Set propagation: the fast exact method.
 pub mod propagate;
-/// The empowerment service and its client (iceoryx2 request-response).
 pub mod service;
 /// State-space enumeration and the successor table.
 pub mod space;
