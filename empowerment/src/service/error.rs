@@ -17,7 +17,7 @@ pub(super) type IpcSource = Box<dyn std::error::Error + Send + Sync + 'static>;
 #[derive(Debug, thiserror::Error)]
 pub enum ServiceError {
     /// Another service already serves this namespace.
-    #[error("an empowerment service for namespace '{0}' is already running; stop it or pick another --namespace")]
+    #[error("an empowerment service for namespace '{0}' is already running; stop it or pick another namespace")]
     AlreadyRunning(String),
     /// The namespace cannot be part of a service name.
     #[error("namespace '{0}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'")]
@@ -50,7 +50,7 @@ impl ServiceError {
 #[derive(Debug, Clone, thiserror::Error)]
 pub enum ClientError {
     /// No service answered before the deadline.
-    #[error("no empowerment service for namespace '{namespace}' after waiting {waited:?}; start one with `fulcrum serve WORLD --namespace {namespace}`")]
+    #[error("no empowerment service for namespace '{namespace}' after waiting {waited:?}; start one for that namespace first")]
     NoService {
         /// Namespace.
         namespace: String,
