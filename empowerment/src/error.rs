@@ -40,7 +40,7 @@ pub enum EngineError {
         max: u32,
     },
     /// The reference method would take too long.
-    #[error("--method enumerate at horizon {h} needs {per_state:.3e} action sequences per state ({actions}^{h}) for {states} states; use --method dp or a smaller horizon")]
+    #[error("the enumerate method at horizon {h} needs {per_state:.3e} action sequences per state ({actions}^{h}) for {states} states; use the dp method or a smaller horizon")]
     EnumerationTooLong {
         /// Horizon.
         h: u32,

@@ -19,20 +19,23 @@
 //! let m = engine.matrix(&[tree], 8, 3, Method::Dp).unwrap();
 //! assert_eq!(m.selection[0], Some(0)); // the axe
 //! ```
+//!
+//! # Contents
+//!
+//! - [`engine`]: the engine: values, matrix, tool selection, landscapes, traces, queries;
+//! - [`space`]: state-space enumeration and the successor table;
+//! - [`propagate`]: set propagation, the fast exact method;
+//! - [`enumerate`]: the reference method, every action sequence;
+//! - [`limits`]: memory limits, checked before a computation starts;
+//! - [`error`]: the engine's errors;
+//! - [`service`]: the empowerment service and its client (iceoryx2 request-response).
 
-/// The engine: values, matrix, selection, landscapes, traces, queries.
 pub mod engine;
-/// The reference method: enumerate every action sequence.
 pub mod enumerate;
-/// Errors.
 pub mod error;
-/// Memory limits.
 pub mod limits;
-/// Set propagation: the fast exact method.
 pub mod propagate;
-/// The empowerment service and its client (iceoryx2 request-response).
 pub mod service;
-/// State-space enumeration and the successor table.
 pub mod space;
 
 pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};

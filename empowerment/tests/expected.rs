@@ -164,9 +164,8 @@ fn exp1_landscape_unequipped_is_a_beacon_around_the_axe() {
     let (w, v) = landscape("exp1-tree", "axe", &["tree"], 8, &[]);
     let ones = [(3, 2), (5, 2), (4, 1), (4, 3)];
     let none = [(4, 2), (5, 4), (8, 4), (4, 6), (9, 2), (9, 6)];
-    for y in 1..w.height - 1 {
-        for x in 1..w.width - 1 {
-            let got = v[y][x];
+    for (y, row) in v.iter().enumerate().take(w.height - 1).skip(1) {
+        for (x, &got) in row.iter().enumerate().take(w.width - 1).skip(1) {
             if ones.contains(&(x, y)) {
                 assert_eq!(got, Some(1.0), "({x},{y})");
             } else if none.contains(&(x, y)) {
@@ -184,9 +183,9 @@ fn exp1_landscape_unequipped_is_a_beacon_around_the_axe() {
 fn exp1_landscape_equipped_rings_the_tree() {
     let (w, v) = landscape("exp1-tree", "axe", &["tree"], 3, &["axe"]);
     let ones = [(8, 2), (10, 2), (9, 1), (9, 3)];
-    for y in 1..w.height - 1 {
-        for x in 1..w.width - 1 {
-            if let Some(val) = v[y][x] {
+    for (y, row) in v.iter().enumerate().take(w.height - 1).skip(1) {
+        for (x, &cell) in row.iter().enumerate().take(w.width - 1).skip(1) {
+            if let Some(val) = cell {
                 let want = if ones.contains(&(x, y)) { 1.0 } else { 0.0 };
                 assert_eq!(val, want, "({x},{y})");
             }
