@@ -18,13 +18,13 @@ use zenoh::Wait;
 pub struct Hello {
     /// The run's namespace on the learner's host (the key expressions' `<run>`).
     pub run: String,
-    /// The run's tag ([`traj::run_tag`] of `run`): chunks carry it.
+    /// The run's tag ([`fulcrum_shared::traj::run_tag`] of `run`): chunks carry it.
     pub run_tag: u64,
     /// The run's id (its directory name by default).
     pub run_id: String,
     /// The world's text; its hash is the run's world hash.
     pub world_source: String,
-    /// [`World::content_hash`], hex.
+    /// [`fulcrum_shared::World::content_hash`], hex.
     pub world_hash: String,
     /// The world's name.
     pub world_name: String,

@@ -33,8 +33,8 @@
 //! |---|---|
 //! | [`session`] | the zenoh session and its settings; the bridge's iceoryx2 node |
 //! | [`hello`] | joining: the hello, the hosts file, actor ids, an actor host's directory |
-//! | [`listen`] | the learner's side |
-//! | [`connect`] | an actor host's side |
+//! | [`mod@listen`] | the learner's side |
+//! | [`mod@connect`] | an actor host's side |
 //! | [`forward`] | an actor host's empowerment service |
 //! | [`stats`] | counters logged when a bridge stops |
 

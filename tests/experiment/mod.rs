@@ -144,7 +144,6 @@ fn finished_runs_are_aggregated_into_hand_counted_figures() {
     assert!(svg.contains(">baseline</text>") && svg.contains(">empowerment</text>"));
     // One band and one legend swatch per arm, as filled polygons.
     assert_eq!(svg.matches("<polygon").count(), 4);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 fn first_line_and_status(args: &[&str], dir: &Path) -> (i32, String) {
@@ -300,7 +299,6 @@ fn an_interrupted_experiment_resumes_without_rerunning_finished_runs() {
     let s: serde_json::Value =
         serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["arms"][0]["finished"], 2);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -341,5 +339,4 @@ fn a_beta_sweep_runs_one_empowerment_arm_per_beta() {
         let rows = read_metrics(&dir.join(format!("runs/{arm}/seed-1/metrics.csv"))).unwrap();
         assert_eq!(rows.last().unwrap().env_steps, 1280);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -226,7 +226,6 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     let names = std::fs::read_to_string(dir.join("hosts.txt")).unwrap();
     assert!(names.lines().any(|l| l.starts_with("3 near ")), "{names}");
     assert!(far.join("config.toml").exists() && far.join("world.toml").exists());
-    let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&far);
 }
 
@@ -309,7 +308,6 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
         .unwrap();
     // Nothing was dropped to make room, and every chunk arrived.
     assert_eq!((last.lost_chunks, last.dropped_chunks), (0, 0));
-    let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&far);
 }
 
@@ -483,5 +481,4 @@ fn a_host_cut_off_for_20_s_is_counted_lost_and_rejoins() {
     assert!(hosts
         .iter()
         .any(|h| h.host == 1 && h.update > u_up && h.name == "far"));
-    let _ = std::fs::remove_dir_all(&dir);
 }

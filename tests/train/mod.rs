@@ -146,7 +146,6 @@ fn two_actors_finish_and_leave_nothing_behind() {
     assert!(cfg.contains("actors = 2") && cfg.contains("fulcrum_version"));
     assert!(out.contains("done: 2048 env steps"), "{out}");
     assert_nothing_left(&namespace_of(&err));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -210,7 +209,6 @@ fn a_killed_actor_is_replaced_and_the_run_finishes() {
     assert_contiguous(&rows, 1000, 256);
     assert_eq!(rows.last().unwrap().actor_restarts, kills as u64);
     assert_nothing_left(&namespace_of(&err));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -265,7 +263,6 @@ fn sigint_stops_everything_and_resume_continues_the_rows() {
     }
     // Wall time continues across the resume.
     assert!(rows.last().unwrap().wall_s > before.last().unwrap().wall_s);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The columns that must match bit for bit (all but the timings).
@@ -468,7 +465,6 @@ fn a_killed_service_is_restarted_and_actors_resume() {
     // the new service).
     assert!(rows.iter().all(|r| r.dropped_chunks == 0));
     assert_nothing_left(&namespace_of(&err));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -510,7 +506,6 @@ fn a_killed_learner_ends_the_run_with_a_resumable_checkpoint() {
     // Rows after the last checkpoint (a multiple of 5) were redone, not duplicated.
     assert_contiguous(&rows, 20, 128);
     assert!(killed_at >= 12);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -542,7 +537,6 @@ fn asynchronous_actors_record_their_policy_lag() {
     assert!(rows.iter().all(|r| (0.0..=3.0).contains(&r.policy_lag)));
     // Actors ran ahead of the learner: some chunks came from an older policy.
     assert!(rows.iter().any(|r| r.policy_lag > 0.0), "no lag recorded");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// PPO through the whole system (actors, service, learner, shared memory) solves the
@@ -670,7 +664,6 @@ fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
     assert!(cfg.contains("horizon_unequipped = 5\n"), "{cfg}");
     assert!(cfg.contains("horizon_equipped = 5\n"), "{cfg}");
     assert!(cfg.contains("horizon_mode = \"fixed\""), "{cfg}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// CPU seconds (user + system) a process has used so far.
@@ -726,7 +719,6 @@ fn a_stopped_learner_blocks_actors_without_burning_a_core_or_losing_chunks() {
     assert_contiguous(&rows, 500, 256);
     assert!(rows.iter().all(|r| r.dropped_chunks == 0), "no chunk lost");
     assert_nothing_left(&namespace_of(&err));
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -758,7 +750,6 @@ fn a_killed_supervisor_takes_its_children_and_the_run_resumes() {
     assert!(status.success(), "{err2}");
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
     assert_contiguous(&rows, 40, 128);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Every iceoryx2 file under `dir` (recursively) with group or other permission bits.
@@ -822,7 +813,6 @@ fn shared_memory_of_a_run_is_owner_only() {
     );
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -867,7 +857,6 @@ fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
         assert_eq!(std::fs::read(dir.join("config.toml")).unwrap(), config);
         assert_eq!(std::fs::read(dir.join("metrics.csv")).unwrap(), rows);
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// The action mask is recorded in the checkpoint: a config.toml edited to the other
@@ -902,7 +891,6 @@ fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
     assert_eq!(s.code(), Some(2), "{err}");
     assert!(err.contains("trained with action_mask = true"), "{err}");
     assert_eq!(err.trim().lines().count(), 1, "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -934,7 +922,6 @@ fn a_torn_metrics_row_is_dropped_on_resume() {
         "{text}"
     );
     assert_contiguous(&read_metrics(&path).unwrap(), 16, 128);
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Socket inodes of a process's open files.
@@ -985,7 +972,6 @@ fn nothing_of_a_run_uses_a_network_socket() {
     }
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -1077,7 +1063,6 @@ fn chunks_of_another_run_or_world_are_refused_and_counted() {
         2,
         "both foreign chunks refused"
     );
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -1123,5 +1108,4 @@ fn a_failed_checkpoint_write_ends_the_run_clearly_and_keeps_the_last_one() {
     );
     assert!(status.success(), "{err}");
     assert_contiguous(&read_metrics(&dir.join("metrics.csv")).unwrap(), 80, 128);
-    let _ = std::fs::remove_dir_all(&dir);
 }
