@@ -36,16 +36,39 @@ fn main() -> ExitCode {
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            let code = if e.is::<fulcrum_run::Interrupted>() {
-                130
-            } else if commands::is_bad_input(&e) {
-                2
-            } else {
-                1
-            };
             eprintln!("fulcrum: {}", one_line(&e));
-            ExitCode::from(code)
+            ExitCode::from(exit_code(&e))
         }
+    }
+}
+
+/// The one place where errors become exit codes: 130 when interrupted (the run kept
+/// its checkpoint), 2 when the request was wrong (bad input: a world file, a state
+/// description, a flag's value, a namespace taken), 1 for every failure.
+fn exit_code(e: &anyhow::Error) -> u8 {
+    use fulcrum_empowerment::service::{ClientError, ServiceError};
+    if e.is::<fulcrum_run::Interrupted>() {
+        return 130;
+    }
+    let bad_input = |c: &(dyn std::error::Error + 'static)| {
+        c.is::<fulcrum_run::BadRequest>()
+            || c.is::<fulcrum_shared::WorldError>()
+            || c.is::<fulcrum_shared::DescribeError>()
+            || c.is::<fulcrum_shared::generate::GenError>()
+            || c.is::<fulcrum_empowerment::EngineError>()
+            || matches!(
+                c.downcast_ref::<ServiceError>(),
+                Some(ServiceError::AlreadyRunning(_) | ServiceError::BadNamespace(_))
+            )
+            || matches!(
+                c.downcast_ref::<ClientError>(),
+                Some(ClientError::WrongWorld { .. } | ClientError::Refused(_))
+            )
+    };
+    if e.chain().any(bad_input) {
+        2
+    } else {
+        1
     }
 }
 

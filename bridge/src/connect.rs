@@ -12,15 +12,16 @@ use fulcrum_empowerment::service::{self};
 use fulcrum_learner::config::RunConfig;
 use fulcrum_run::bad;
 use fulcrum_run::process::STOP;
-use fulcrum_shared::msg::{self};
+use fulcrum_shared::msg;
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
+use fulcrum_shared::World;
 use iceoryx2::prelude::*;
 use zenoh::handlers::RingChannel;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;
 
 use crate::forward::Forwarder;
-use crate::hello::{join, valid_host_name, write_atomic, Joined};
+use crate::hello::{join, valid_host_name, write_atomic, Hello, Joined};
 use crate::session::{locator, node, open_session, ZenohOptions};
 use crate::stats::BridgeStats;
 
@@ -45,50 +46,14 @@ pub fn connect(
 ) -> Result<()> {
     if !valid_host_name(name) {
         return bad(format!(
-            "--name '{name}' is not usable: use letters, digits, '-', '_' or '.' (at most 64)"
+            "the host name '{name}' is not usable: use letters, digits, '-', '_' or '.' (at most 64)"
         ));
     }
     let endpoint = locator(addr)?;
     let session = open_session(z, &endpoint, false)?;
     let hello = join(&session, &endpoint, name, give_up)?;
-    let world = fulcrum_shared::parse_world(&hello.world_source, &hello.world_name)
-        .map_err(|e| anyhow::anyhow!("the run's world does not parse here: {e}"))?;
-    let hash = format!("{:016x}", world.content_hash());
-    if hash != hello.world_hash {
-        anyhow::bail!(
-            "the run's world arrived damaged (hash {hash}, the learner's {})",
-            hello.world_hash
-        );
-    }
-    if let Some(id) = want.run_id.filter(|id| *id != hello.run_id) {
-        return bad(format!(
-            "the run at {endpoint} is '{}', not '{id}'",
-            hello.run_id
-        ));
-    }
-    if let Some(w) = want.world {
-        let mine = fulcrum_run::select::load_world(w)?;
-        if mine.content_hash() != world.content_hash() {
-            return bad(format!(
-                "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",
-                hello.world_name,
-                hello.world_hash,
-                mine.content_hash()
-            ));
-        }
-    }
-    if traj::run_tag(&hello.run) != hello.run_tag {
-        anyhow::bail!("the learner's host sent a run tag that does not match its run");
-    }
-    // The run's settings, with the world as received.
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let world_path = dir.join("world.toml");
-    write_atomic(&world_path, hello.world_source.as_bytes())?;
-    let mut cfg: RunConfig = toml::from_str(&hello.config)
-        .map_err(|e| anyhow::anyhow!("the run's config.toml does not parse here: {e}"))?;
-    cfg.world = world_path.display().to_string();
-    cfg.remote = false;
-    write_atomic(&dir.join("config.toml"), cfg.to_toml().as_bytes())?;
+    let world = check_hello(&hello, want, &endpoint)?;
+    let cfg = write_run(dir, &hello)?;
     let local_ns = format!("{}.h{}", hello.run, hello.host);
     if !msg::valid_namespace(&local_ns) {
         anyhow::bail!("the run's namespace '{}' is not usable here", hello.run);
@@ -113,123 +78,10 @@ pub fn connect(
             .wait()
             .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?
     };
-    let mut threads = Vec::new();
-    // Chunks: this host's actors -> zenoh.
-    {
-        let publisher = session
-            .declare_publisher(format!("fulcrum/{run}/chunks/{name}"))
-            .congestion_control(CongestionControl::Block)
-            .priority(Priority::Data)
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
-        let (ns, stop, stats) = (local_ns.clone(), stop.clone(), stats.clone());
-        threads.push(std::thread::spawn(move || -> Result<()> {
-            let node = node()?;
-            let names = TrainNames::new(&ns);
-            let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
-            let sub = tsvc
-                .subscriber_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("chunk subscriber: {e:?}"))?;
-            let wake =
-                traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
-            let listener = wake
-                .listener_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
-            let mut buf: Vec<u8> = Vec::new();
-            while !stop.load(Ordering::Relaxed) {
-                let mut got = false;
-                while let Ok(Some(s)) = sub.receive() {
-                    got = true;
-                    let h: ChunkHeader = *s.user_header();
-                    buf.clear();
-                    buf.extend_from_slice(&h.to_wire());
-                    buf.extend_from_slice(s.payload());
-                    drop(s);
-                    let listening = publisher
-                        .matching_status()
-                        .wait()
-                        .map(|m| m.matching())
-                        .unwrap_or(false);
-                    if !listening {
-                        // No learner reachable: the chunk is lost (the learner sees
-                        // the gap in this actor's sequence numbers).
-                        stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
-                        continue;
-                    }
-                    publisher
-                        .put(buf.clone())
-                        .wait()
-                        .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
-                    stats.chunks.fetch_add(1, Ordering::Relaxed);
-                    stats
-                        .chunk_bytes
-                        .fetch_add(buf.len() as u64, Ordering::Relaxed);
-                }
-                if !got {
-                    let _ = listener.timed_wait(|_| {}, Duration::from_millis(100));
-                }
-            }
-            Ok(())
-        }));
-    }
-    // Weights: zenoh -> this host's policy service (only the newest matters).
-    {
-        let sub = session
-            .declare_subscriber(format!("fulcrum/{run}/policy"))
-            .with(RingChannel::new(1))
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
-        let (ns, stop, stats, tag) = (local_ns.clone(), stop.clone(), stats.clone(), hello.run_tag);
-        threads.push(std::thread::spawn(move || -> Result<()> {
-            let node = node()?;
-            let names = TrainNames::new(&ns);
-            let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
-            let publisher = psvc
-                .publisher_builder()
-                .initial_max_slice_len(1 << 12)
-                .allocation_strategy(AllocationStrategy::PowerOfTwo)
-                .max_loaned_samples(2)
-                .create()
-                .map_err(|e| anyhow::anyhow!("weights publisher: {e:?}"))?;
-            let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
-            let notifier = wake
-                .notifier_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
-            let mut floats: Vec<f32> = Vec::new();
-            while !stop.load(Ordering::Relaxed) {
-                let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
-                    continue;
-                };
-                let bytes = sample.payload().to_bytes();
-                let Some(h) = WeightsHeader::from_wire(&bytes) else {
-                    continue;
-                };
-                let body = &bytes[WeightsHeader::WIRE_BYTES..];
-                if h.run != tag || body.len() as u64 != h.len * 4 {
-                    tracing::warn!("ignored weights of another run or length");
-                    continue;
-                }
-                floats.clear();
-                floats.extend(
-                    body.chunks_exact(4)
-                        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-                );
-                let mut s = publisher
-                    .loan_slice_uninit(floats.len())
-                    .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
-                *s.user_header_mut() = h;
-                let s = s.write_from_slice(&floats);
-                s.send()
-                    .map_err(|e| anyhow::anyhow!("send weights: {e:?}"))?;
-                let _ = notifier.notify();
-                stats.weights.fetch_add(1, Ordering::Relaxed);
-            }
-            Ok(())
-        }));
-    }
+    let threads = vec![
+        chunks_out(&session, &run, name, &local_ns, &stop, &stats)?,
+        weights_in(&session, &run, &local_ns, hello.run_tag, &stop, &stats)?,
+    ];
     // This host's empowerment service: a stand-in that asks the learner's host.
     let result = if cfg.empowerment {
         let mut fwd = Forwarder::new(&session, &run, &world, stats.clone(), give_up)?;
@@ -267,4 +119,184 @@ pub fn connect(
         Some(e) if !STOP.load(Ordering::Relaxed) => Err(e),
         _ => Ok(()),
     }
+}
+
+/// The world and run the learner's host sent, checked against what this host wants.
+fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
+    let world = fulcrum_shared::parse_world(&hello.world_source, &hello.world_name)
+        .map_err(|e| anyhow::anyhow!("the run's world does not parse here: {e}"))?;
+    let hash = format!("{:016x}", world.content_hash());
+    if hash != hello.world_hash {
+        anyhow::bail!(
+            "the run's world arrived damaged (hash {hash}, the learner's {})",
+            hello.world_hash
+        );
+    }
+    if let Some(id) = want.run_id.filter(|id| *id != hello.run_id) {
+        return bad(format!(
+            "the run at {endpoint} is '{}', not '{id}'",
+            hello.run_id
+        ));
+    }
+    if let Some(w) = want.world {
+        let mine = fulcrum_run::select::load_world(w)?;
+        if mine.content_hash() != world.content_hash() {
+            return bad(format!(
+                "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",
+                hello.world_name,
+                hello.world_hash,
+                mine.content_hash()
+            ));
+        }
+    }
+    if traj::run_tag(&hello.run) != hello.run_tag {
+        anyhow::bail!("the learner's host sent a run tag that does not match its run");
+    }
+    Ok(world)
+}
+
+/// The run's settings in `dir`, with the world as received; returns the config.
+fn write_run(dir: &Path, hello: &Hello) -> Result<RunConfig> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let world_path = dir.join("world.toml");
+    write_atomic(&world_path, hello.world_source.as_bytes())?;
+    let mut cfg: RunConfig = toml::from_str(&hello.config)
+        .map_err(|e| anyhow::anyhow!("the run's config.toml does not parse here: {e}"))?;
+    cfg.world = world_path.display().to_string();
+    cfg.remote = false;
+    write_atomic(&dir.join("config.toml"), cfg.to_toml().as_bytes())?;
+    Ok(cfg)
+}
+
+/// Chunks of this host's actors -> zenoh, on a thread.
+fn chunks_out(
+    session: &zenoh::Session,
+    run: &str,
+    name: &str,
+    local_ns: &str,
+    stop: &Arc<AtomicBool>,
+    stats: &Arc<BridgeStats>,
+) -> Result<std::thread::JoinHandle<Result<()>>> {
+    let publisher = session
+        .declare_publisher(format!("fulcrum/{run}/chunks/{name}"))
+        .congestion_control(CongestionControl::Block)
+        .priority(Priority::Data)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
+    let (ns, stop, stats) = (local_ns.to_string(), stop.clone(), stats.clone());
+    Ok(std::thread::spawn(move || -> Result<()> {
+        let node = node()?;
+        let names = TrainNames::new(&ns);
+        let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let sub = tsvc
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("chunk subscriber: {e:?}"))?;
+        let wake =
+            traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
+        let listener = wake
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
+        let mut buf: Vec<u8> = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            let mut got = false;
+            while let Ok(Some(s)) = sub.receive() {
+                got = true;
+                let h: ChunkHeader = *s.user_header();
+                buf.clear();
+                buf.extend_from_slice(&h.to_wire());
+                buf.extend_from_slice(s.payload());
+                drop(s);
+                let listening = publisher
+                    .matching_status()
+                    .wait()
+                    .map(|m| m.matching())
+                    .unwrap_or(false);
+                if !listening {
+                    // No learner reachable: the chunk is lost (the learner sees
+                    // the gap in this actor's sequence numbers).
+                    stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
+                    continue;
+                }
+                publisher
+                    .put(buf.clone())
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
+                stats.chunks.fetch_add(1, Ordering::Relaxed);
+                stats
+                    .chunk_bytes
+                    .fetch_add(buf.len() as u64, Ordering::Relaxed);
+            }
+            if !got {
+                let _ = listener.timed_wait(|_| {}, Duration::from_millis(100));
+            }
+        }
+        Ok(())
+    }))
+}
+
+/// Weights from zenoh -> this host's policy service (only the newest matters), on a
+/// thread; weights of another run or of the wrong length are ignored.
+fn weights_in(
+    session: &zenoh::Session,
+    run: &str,
+    local_ns: &str,
+    tag: u64,
+    stop: &Arc<AtomicBool>,
+    stats: &Arc<BridgeStats>,
+) -> Result<std::thread::JoinHandle<Result<()>>> {
+    let sub = session
+        .declare_subscriber(format!("fulcrum/{run}/policy"))
+        .with(RingChannel::new(1))
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
+    let (ns, stop, stats) = (local_ns.to_string(), stop.clone(), stats.clone());
+    Ok(std::thread::spawn(move || -> Result<()> {
+        let node = node()?;
+        let names = TrainNames::new(&ns);
+        let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let publisher = psvc
+            .publisher_builder()
+            .initial_max_slice_len(1 << 12)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| anyhow::anyhow!("weights publisher: {e:?}"))?;
+        let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
+        let notifier = wake
+            .notifier_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
+        let mut floats: Vec<f32> = Vec::new();
+        while !stop.load(Ordering::Relaxed) {
+            let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
+                continue;
+            };
+            let bytes = sample.payload().to_bytes();
+            let Some(h) = WeightsHeader::from_wire(&bytes) else {
+                continue;
+            };
+            let body = &bytes[WeightsHeader::WIRE_BYTES..];
+            if h.run != tag || body.len() as u64 != h.len * 4 {
+                tracing::warn!("ignored weights of another run or length");
+                continue;
+            }
+            floats.clear();
+            floats.extend(
+                body.chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            );
+            let mut s = publisher
+                .loan_slice_uninit(floats.len())
+                .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
+            *s.user_header_mut() = h;
+            let s = s.write_from_slice(&floats);
+            s.send()
+                .map_err(|e| anyhow::anyhow!("send weights: {e:?}"))?;
+            let _ = notifier.notify();
+            stats.weights.fetch_add(1, Ordering::Relaxed);
+        }
+        Ok(())
+    }))
 }

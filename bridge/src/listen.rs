@@ -36,175 +36,14 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     let endpoint = locator(addr)?;
     let session = open_session(z, &endpoint, true)?;
     let stats = Arc::new(BridgeStats::default());
-
-    // Join: a name gets the same index on every join (and after a resume).
-    let hosts = Arc::new(Mutex::new(read_hosts(&paths.host_names())));
-    let hello = Hello {
-        run: ns.to_string(),
-        run_tag: traj::run_tag(ns),
-        run_id: cfg.run_id.clone(),
-        world_source: world.source.clone(),
-        world_hash: format!("{:016x}", world.content_hash()),
-        world_name: world.name.clone(),
-        config: std::fs::read_to_string(paths.config())
-            .with_context(|| format!("cannot read {}", paths.config().display()))?,
-        host: 0,
-    };
-    let names_file = paths.host_names();
-    let hello_q = {
-        let hosts = hosts.clone();
-        session
-            .declare_queryable("fulcrum/hello")
-            .callback(move |q| {
-                let name = q.parameters().get("name").unwrap_or("").to_string();
-                if !valid_host_name(&name) {
-                    let _ = q
-                        .reply_err(format!("'{name}' is not a usable host name: use letters, digits, '-', '_' or '.'"))
-                        .wait();
-                    return;
-                }
-                let addr = q.parameters().get("from").unwrap_or("?").to_string();
-                let index = {
-                    let mut h = hosts.lock().unwrap_or_else(|p| p.into_inner());
-                    let next = h.values().map(|(i, _)| *i).max().unwrap_or(0) + 1;
-                    let index = h.entry(name.clone()).or_insert((next, addr)).0;
-                    if let Err(e) = write_hosts(&names_file, &h) {
-                        tracing::warn!("{e}");
-                    }
-                    index
-                };
-                let reply = Hello {
-                    host: index,
-                    ..hello.clone()
-                };
-                let text = toml::to_string(&reply).unwrap_or_default();
-                eprintln!("fulcrum bridge: host '{name}' joined as host {index}");
-                let _ = q.reply(q.key_expr().clone(), text).wait();
-            })
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh queryable: {e}"))?
-    };
+    let hello_q = answer_hellos(&session, &paths, &cfg, &world, ns)?;
 
     let stop = Arc::new(AtomicBool::new(false));
-    let mut threads = Vec::new();
-    // Chunks: zenoh -> the learner's trajectory service.
-    {
-        let sub = session
-            .declare_subscriber(format!("fulcrum/{ns}/chunks/*"))
-            .with(FifoChannel::new(4))
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
-        let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
-        threads.push(std::thread::spawn(move || -> Result<()> {
-            let node = node()?;
-            let names = TrainNames::new(&ns);
-            let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
-            let s2 = stop.clone();
-            let publisher = tsvc
-                .publisher_builder()
-                .initial_max_slice_len(1 << 16)
-                .allocation_strategy(AllocationStrategy::PowerOfTwo)
-                .max_loaned_samples(2)
-                .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
-                .set_backpressure_handler(move |_: &iceoryx2::port::BackpressureInfo| {
-                    // The learner's queue is full: the link waits with us.
-                    if s2.load(Ordering::Relaxed) || STOP.load(Ordering::Relaxed) {
-                        return BackpressureAction::DiscardDataAndFail;
-                    }
-                    std::thread::sleep(Duration::from_micros(500));
-                    BackpressureAction::Retry
-                })
-                .create()
-                .map_err(|e| anyhow::anyhow!("chunk publisher: {e:?}"))?;
-            let wake =
-                traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
-            let notifier = wake
-                .notifier_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
-            while !stop.load(Ordering::Relaxed) {
-                let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
-                    continue;
-                };
-                let bytes = sample.payload().to_bytes();
-                let Some(h) = ChunkHeader::from_wire(&bytes) else {
-                    stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
-                    continue;
-                };
-                let body = &bytes[ChunkHeader::WIRE_BYTES..];
-                if body.len() as u64 != h.len {
-                    tracing::warn!(
-                        actor = h.actor,
-                        "a chunk of the wrong length from another host"
-                    );
-                    stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
-                    continue;
-                }
-                let mut s = publisher
-                    .loan_slice_uninit(body.len())
-                    .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
-                *s.user_header_mut() = h;
-                let s = s.write_from_slice(body);
-                if s.send().is_err() {
-                    break; // stopping
-                }
-                let _ = notifier.notify();
-                stats.chunks.fetch_add(1, Ordering::Relaxed);
-                stats
-                    .chunk_bytes
-                    .fetch_add(bytes.len() as u64, Ordering::Relaxed);
-            }
-            Ok(())
-        }));
-    }
-    // Weights: the learner's policy service -> zenoh.
-    {
-        let publisher = session
-            .declare_publisher(format!("fulcrum/{ns}/policy"))
-            .congestion_control(CongestionControl::Block)
-            .priority(Priority::DataHigh)
-            .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
-        let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
-        threads.push(std::thread::spawn(move || -> Result<()> {
-            let node = node()?;
-            let names = TrainNames::new(&ns);
-            let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
-            let sub = psvc
-                .subscriber_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("weights subscriber: {e:?}"))?;
-            let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
-            let listener = wake
-                .listener_builder()
-                .create()
-                .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
-            while !stop.load(Ordering::Relaxed) {
-                let _ = listener.timed_wait(|_| {}, Duration::from_millis(100));
-                let mut newest: Option<Vec<u8>> = None;
-                while let Ok(Some(s)) = sub.receive() {
-                    let h: WeightsHeader = *s.user_header();
-                    let mut out =
-                        Vec::with_capacity(WeightsHeader::WIRE_BYTES + s.payload().len() * 4);
-                    out.extend_from_slice(&h.to_wire());
-                    for v in s.payload() {
-                        out.extend_from_slice(&v.to_le_bytes());
-                    }
-                    newest = Some(out);
-                }
-                if let Some(w) = newest {
-                    publisher
-                        .put(w)
-                        .wait()
-                        .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
-                    stats.weights.fetch_add(1, Ordering::Relaxed);
-                }
-            }
-            Ok(())
-        }));
-    }
-    // Lookups: zenoh queries -> the run's service.
-    let _emp_q = if cfg.empowerment {
+    let mut threads = vec![
+        chunks_in(&session, ns, &stop, &stats)?,
+        weights_out(&session, ns, &stop, &stats)?,
+    ];
+    if cfg.empowerment {
         let q = session
             .declare_queryable(format!("fulcrum/{ns}/empowerment"))
             .with(FifoChannel::new(256))
@@ -215,10 +54,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
             serve_lookups(&q, &ns, &world, &stop, &stats);
             Ok(())
         }));
-        true
-    } else {
-        false
-    };
+    }
     println!("fulcrum bridge: ready, listening on {endpoint} for run {ns}");
     let _ = std::io::stdout().flush();
     while !STOP.load(Ordering::Relaxed) && threads.iter().all(|t| !t.is_finished()) {
@@ -240,6 +76,189 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
         Some(e) if !STOP.load(Ordering::Relaxed) => Err(e),
         _ => Ok(()),
     }
+}
+
+/// Answers `fulcrum/hello`: a name gets the same host index on every join (and after a
+/// resume), kept in the run's hosts file.
+fn answer_hellos(
+    session: &zenoh::Session,
+    paths: &RunPaths,
+    cfg: &RunConfig,
+    world: &World,
+    ns: &str,
+) -> Result<zenoh::query::Queryable<()>> {
+    let hosts = Arc::new(Mutex::new(read_hosts(&paths.host_names())));
+    let hello = Hello {
+        run: ns.to_string(),
+        run_tag: traj::run_tag(ns),
+        run_id: cfg.run_id.clone(),
+        world_source: world.source.clone(),
+        world_hash: format!("{:016x}", world.content_hash()),
+        world_name: world.name.clone(),
+        config: std::fs::read_to_string(paths.config())
+            .with_context(|| format!("cannot read {}", paths.config().display()))?,
+        host: 0,
+    };
+    let names_file = paths.host_names();
+    session
+        .declare_queryable("fulcrum/hello")
+        .callback(move |q| {
+            let name = q.parameters().get("name").unwrap_or("").to_string();
+            if !valid_host_name(&name) {
+                let _ = q
+                    .reply_err(format!(
+                        "'{name}' is not a usable host name: use letters, digits, '-', '_' or '.'"
+                    ))
+                    .wait();
+                return;
+            }
+            let addr = q.parameters().get("from").unwrap_or("?").to_string();
+            let index = {
+                let mut h = hosts.lock().unwrap_or_else(|p| p.into_inner());
+                let next = h.values().map(|(i, _)| *i).max().unwrap_or(0) + 1;
+                let index = h.entry(name.clone()).or_insert((next, addr)).0;
+                if let Err(e) = write_hosts(&names_file, &h) {
+                    tracing::warn!("{e}");
+                }
+                index
+            };
+            let reply = Hello {
+                host: index,
+                ..hello.clone()
+            };
+            let text = toml::to_string(&reply).unwrap_or_default();
+            eprintln!("fulcrum bridge: host '{name}' joined as host {index}");
+            let _ = q.reply(q.key_expr().clone(), text).wait();
+        })
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh queryable: {e}"))
+}
+
+/// Chunks from other hosts: zenoh -> the learner's trajectory service, on a thread.
+fn chunks_in(
+    session: &zenoh::Session,
+    ns: &str,
+    stop: &Arc<AtomicBool>,
+    stats: &Arc<BridgeStats>,
+) -> Result<std::thread::JoinHandle<Result<()>>> {
+    let sub = session
+        .declare_subscriber(format!("fulcrum/{ns}/chunks/*"))
+        .with(FifoChannel::new(4))
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
+    let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
+    Ok(std::thread::spawn(move || -> Result<()> {
+        let node = node()?;
+        let names = TrainNames::new(&ns);
+        let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let s2 = stop.clone();
+        let publisher = tsvc
+            .publisher_builder()
+            .initial_max_slice_len(1 << 16)
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .max_loaned_samples(2)
+            .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
+            .set_backpressure_handler(move |_: &iceoryx2::port::BackpressureInfo| {
+                // The learner's queue is full: the link waits with us.
+                if s2.load(Ordering::Relaxed) || STOP.load(Ordering::Relaxed) {
+                    return BackpressureAction::DiscardDataAndFail;
+                }
+                std::thread::sleep(Duration::from_micros(500));
+                BackpressureAction::Retry
+            })
+            .create()
+            .map_err(|e| anyhow::anyhow!("chunk publisher: {e:?}"))?;
+        let wake =
+            traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
+        let notifier = wake
+            .notifier_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
+        while !stop.load(Ordering::Relaxed) {
+            let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
+                continue;
+            };
+            let bytes = sample.payload().to_bytes();
+            let Some(h) = ChunkHeader::from_wire(&bytes) else {
+                stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
+                continue;
+            };
+            let body = &bytes[ChunkHeader::WIRE_BYTES..];
+            if body.len() as u64 != h.len {
+                tracing::warn!(
+                    actor = h.actor,
+                    "a chunk of the wrong length from another host"
+                );
+                stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
+                continue;
+            }
+            let mut s = publisher
+                .loan_slice_uninit(body.len())
+                .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
+            *s.user_header_mut() = h;
+            let s = s.write_from_slice(body);
+            if s.send().is_err() {
+                break; // stopping
+            }
+            let _ = notifier.notify();
+            stats.chunks.fetch_add(1, Ordering::Relaxed);
+            stats
+                .chunk_bytes
+                .fetch_add(bytes.len() as u64, Ordering::Relaxed);
+        }
+        Ok(())
+    }))
+}
+
+/// The learner's weights: its policy service -> zenoh, the newest only, on a thread.
+fn weights_out(
+    session: &zenoh::Session,
+    ns: &str,
+    stop: &Arc<AtomicBool>,
+    stats: &Arc<BridgeStats>,
+) -> Result<std::thread::JoinHandle<Result<()>>> {
+    let publisher = session
+        .declare_publisher(format!("fulcrum/{ns}/policy"))
+        .congestion_control(CongestionControl::Block)
+        .priority(Priority::DataHigh)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
+    let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
+    Ok(std::thread::spawn(move || -> Result<()> {
+        let node = node()?;
+        let names = TrainNames::new(&ns);
+        let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let sub = psvc
+            .subscriber_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("weights subscriber: {e:?}"))?;
+        let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
+        let listener = wake
+            .listener_builder()
+            .create()
+            .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
+        while !stop.load(Ordering::Relaxed) {
+            let _ = listener.timed_wait(|_| {}, Duration::from_millis(100));
+            let mut newest: Option<Vec<u8>> = None;
+            while let Ok(Some(s)) = sub.receive() {
+                let h: WeightsHeader = *s.user_header();
+                let mut out = Vec::with_capacity(WeightsHeader::WIRE_BYTES + s.payload().len() * 4);
+                out.extend_from_slice(&h.to_wire());
+                for v in s.payload() {
+                    out.extend_from_slice(&v.to_le_bytes());
+                }
+                newest = Some(out);
+            }
+            if let Some(w) = newest {
+                publisher
+                    .put(w)
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
+                stats.weights.fetch_add(1, Ordering::Relaxed);
+            }
+        }
+        Ok(())
+    }))
 }
 
 /// Answer zenoh lookups with the run's local service: up to `MAX_IN_FLIGHT` at a time.

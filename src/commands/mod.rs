@@ -1,8 +1,8 @@
-//! One module per subcommand, and what they share: resolving a world, a tool, an
-//! object set and horizons from the command line, and telling bad input from failure.
+//! One module per subcommand: each turns its flags into a request, calls the library
+//! that does the work, and prints the result. No command imports another.
 
 use anyhow::Result;
-use fulcrum_empowerment::{EngineError, Method};
+use fulcrum_empowerment::Method;
 
 use crate::cli::{Command, MethodArg};
 
@@ -21,31 +21,6 @@ pub mod world;
 /// What a command of the `multihost` feature says in a build without it.
 pub const NO_MULTIHOST: &str =
     "{} needs fulcrum built with the multihost feature: cargo build --release --features multihost";
-
-/// Whether an error is the user's (exit 2) rather than a failure (exit 1).
-pub fn is_bad_input(e: &anyhow::Error) -> bool {
-    e.chain().any(|c| {
-        c.is::<fulcrum_run::BadRequest>()
-            || c.is::<fulcrum_shared::WorldError>()
-            || c.is::<fulcrum_shared::DescribeError>()
-            || c.is::<fulcrum_shared::generate::GenError>()
-            || c.is::<EngineError>()
-            || matches!(
-                c.downcast_ref::<fulcrum_empowerment::service::ServiceError>(),
-                Some(
-                    fulcrum_empowerment::service::ServiceError::AlreadyRunning(_)
-                        | fulcrum_empowerment::service::ServiceError::BadNamespace(_)
-                )
-            )
-            || matches!(
-                c.downcast_ref::<fulcrum_empowerment::service::ClientError>(),
-                Some(
-                    fulcrum_empowerment::service::ClientError::WrongWorld { .. }
-                        | fulcrum_empowerment::service::ClientError::Refused(_)
-                )
-            )
-    })
-}
 
 /// Run a parsed command line.
 pub fn run(cli: crate::cli::Cli) -> Result<()> {
