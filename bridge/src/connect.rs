@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use fulcrum_empowerment::service::{self};
+use fulcrum_empowerment::service;
 use fulcrum_learner::config::RunConfig;
 use fulcrum_run::bad;
 use fulcrum_run::process::STOP;

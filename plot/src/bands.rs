@@ -100,62 +100,62 @@ const BAND_ALPHA: f64 = 0.22;
 const WIDTH: u32 = 820;
 const HEIGHT: u32 = 520;
 
-/// The chart as shapes in pixel coordinates.
-fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
-    let mut out = Vec::new();
-    // On a log axis everything is drawn in log10 units; non-positive values vanish.
-    let lx = |v: f64| match (c.x_log, v > 0.0) {
+/// `v` on an axis: log10 on a log axis (non-positive values vanish as NaN).
+fn axis_value(log: bool, v: f64) -> f64 {
+    match (log, v > 0.0) {
         (false, _) => v,
         (true, true) => v.log10(),
         (true, false) => f64::NAN,
-    };
-    let ly = |v: f64| match (c.y_log, v > 0.0) {
-        (false, _) => v,
-        (true, true) => v.log10(),
-        (true, false) => f64::NAN,
-    };
-    let positive_range = |vals: &mut dyn Iterator<Item = f64>| {
-        let (lo, hi) = vals
-            .filter(|v| v.is_finite() && *v > 0.0)
-            .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
-        if lo.is_finite() {
-            decades(lo, hi)
-        } else {
-            decades(1.0, 10.0)
-        }
-    };
-    let xs: Vec<f64> = c.x.iter().map(|&v| lx(v)).collect();
-    let (x_lo, x_hi, x_ticks): (f64, f64, Vec<(f64, String)>) = if c.x_log {
-        positive_range(&mut c.x.iter().copied())
+    }
+}
+
+/// Decades covering the positive finite values (1..10 when there are none).
+fn positive_range(vals: impl Iterator<Item = f64>) -> (f64, f64, Vec<(f64, String)>) {
+    let (lo, hi) = vals
+        .filter(|v| v.is_finite() && *v > 0.0)
+        .fold((f64::INFINITY, 0.0f64), |(a, b), v| (a.min(v), b.max(v)));
+    if lo.is_finite() {
+        decades(lo, hi)
     } else {
-        let x_hi =
-            c.x.iter()
-                .copied()
-                .filter(|v| v.is_finite())
-                .fold(10.0, f64::max);
-        let (ticks, step) = nice_ticks(0.0, x_hi, 9);
-        let t = ticks
-            .into_iter()
-            .map(|x| (x, format_steps(x, step, x_hi)))
-            .collect();
-        (0.0, x_hi, t)
-    };
-    let (y_lo, y_hi, y_ticks) = match c.y_range {
-        _ if c.y_log => positive_range(&mut c.bands.iter().flat_map(|b| {
-            b.mean
-                .iter()
-                .zip(&b.std)
-                .flat_map(|(m, s)| [m - s.max(0.0), m + s.max(0.0), *m])
-        })),
+        decades(1.0, 10.0)
+    }
+}
+
+/// Every value a band reaches: mean - std, mean + std and the mean.
+fn band_values(c: &BandChart) -> impl Iterator<Item = f64> + '_ {
+    c.bands.iter().flat_map(|b| {
+        b.mean
+            .iter()
+            .zip(&b.std)
+            .flat_map(|(m, s)| [m - s.max(0.0), m + s.max(0.0), *m])
+    })
+}
+
+/// The x axis: (low, high, ticks), in axis units.
+fn x_axis(c: &BandChart) -> (f64, f64, Vec<(f64, String)>) {
+    if c.x_log {
+        return positive_range(c.x.iter().copied());
+    }
+    let x_hi =
+        c.x.iter()
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(10.0, f64::max);
+    let (ticks, step) = nice_ticks(0.0, x_hi, 9);
+    let t = ticks
+        .into_iter()
+        .map(|x| (x, format_steps(x, step, x_hi)))
+        .collect();
+    (0.0, x_hi, t)
+}
+
+/// The y axis: (low, high, ticks), in axis units.
+fn y_axis(c: &BandChart) -> (f64, f64, Vec<(f64, String)>) {
+    match c.y_range {
+        _ if c.y_log => positive_range(band_values(c)),
         Some((lo, hi)) => nice_range(lo, hi, 5),
         None => {
-            let vals = c.bands.iter().flat_map(|b| {
-                b.mean
-                    .iter()
-                    .zip(&b.std)
-                    .flat_map(|(m, s)| [m - s.max(0.0), m + s.max(0.0), *m])
-            });
-            let (lo, hi) = vals
+            let (lo, hi) = band_values(c)
                 .filter(|v| v.is_finite())
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                     (a.min(v), b.max(v))
@@ -169,15 +169,11 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             };
             nice_range(lo, hi, 6)
         }
-    };
-    let tick_w = y_ticks
-        .iter()
-        .map(|(_, s)| text_width(font, s, TICK_SIZE))
-        .fold(0.0, f64::max);
-    let left = 24.0 + 14.0 + tick_w.ceil() + 12.0;
-    let right = f64::from(WIDTH) - 24.0;
-    // Legend rows (a swatch and a name per arm), as many as the width needs; the panel
-    // starts below the last.
+    }
+}
+
+/// Legend rows (a swatch and a name per arm), as many as the width `right` needs.
+fn legend_rows(c: &BandChart, font: &ab_glyph::FontRef<'static>, right: f64) -> Vec<Vec<usize>> {
     let entry_w = |b: &Band| 24.0 + 6.0 + text_width(font, &b.name, TICK_SIZE) + 18.0;
     let mut rows: Vec<Vec<usize>> = vec![Vec::new()];
     let mut used = 0.0;
@@ -190,11 +186,50 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         rows.last_mut().expect("one row at least").push(i);
         used += w;
     }
-    let top = 80.0 + 20.0 * (rows.len() - 1) as f64;
-    let bottom = f64::from(HEIGHT) - 70.0;
-    let px = |x: f64| left + (x - x_lo) / (x_hi - x_lo) * (right - left);
-    let py = |y: f64| bottom - (y - y_lo) / (y_hi - y_lo) * (bottom - top);
+    rows
+}
 
+/// The plotting rectangle in pixels and the axis ranges it shows.
+struct Panel {
+    left: f64,
+    right: f64,
+    top: f64,
+    bottom: f64,
+    x: (f64, f64),
+    y: (f64, f64),
+}
+
+impl Panel {
+    fn px(&self, x: f64) -> f64 {
+        self.left + (x - self.x.0) / (self.x.1 - self.x.0) * (self.right - self.left)
+    }
+
+    fn py(&self, y: f64) -> f64 {
+        self.bottom - (y - self.y.0) / (self.y.1 - self.y.0) * (self.bottom - self.top)
+    }
+}
+
+/// The chart as shapes in pixel coordinates.
+fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
+    let (x_lo, x_hi, x_ticks) = x_axis(c);
+    let (y_lo, y_hi, y_ticks) = y_axis(c);
+    let tick_w = y_ticks
+        .iter()
+        .map(|(_, s)| text_width(font, s, TICK_SIZE))
+        .fold(0.0, f64::max);
+    let left = 24.0 + 14.0 + tick_w.ceil() + 12.0;
+    let right = f64::from(WIDTH) - 24.0;
+    // The panel starts below the last legend row.
+    let rows = legend_rows(c, font, right);
+    let panel = Panel {
+        left,
+        right,
+        top: 80.0 + 20.0 * (rows.len() - 1) as f64,
+        bottom: f64::from(HEIGHT) - 70.0,
+        x: (x_lo, x_hi),
+        y: (y_lo, y_hi),
+    };
+    let mut out = Vec::new();
     out.push(Shape::Text(Label::new(
         c.title.clone(),
         f64::from(WIDTH) / 2.0,
@@ -203,39 +238,43 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         HAlign::Center,
         VAlign::Middle,
     )));
-    // Grid, ticks, frame.
-    for (x, text) in &x_ticks {
-        let x = *x;
-        out.push(Shape::Line(vec![(px(x), top), (px(x), bottom)], GRID, 1.0));
-        out.push(Shape::Line(
-            vec![(px(x), bottom), (px(x), bottom + 5.0)],
-            AXIS,
-            1.0,
-        ));
+    axes(&mut out, c, font, &panel, &x_ticks, &y_ticks);
+    bands(&mut out, c, &panel);
+    legend(&mut out, c, font, &rows, right);
+    out
+}
+
+/// Grid, ticks, frame and axis titles.
+fn axes(
+    out: &mut Vec<Shape>,
+    c: &BandChart,
+    font: &ab_glyph::FontRef<'static>,
+    p: &Panel,
+    x_ticks: &[(f64, String)],
+    y_ticks: &[(f64, String)],
+) {
+    let (left, right, top, bottom) = (p.left, p.right, p.top, p.bottom);
+    for (x, text) in x_ticks {
+        let x = p.px(*x);
+        out.push(Shape::Line(vec![(x, top), (x, bottom)], GRID, 1.0));
+        out.push(Shape::Line(vec![(x, bottom), (x, bottom + 5.0)], AXIS, 1.0));
         out.push(Shape::Text(Label::new(
             text.clone(),
-            px(x),
+            x,
             bottom + 9.0,
             TICK_SIZE,
             HAlign::Center,
             VAlign::Top,
         )));
     }
-    for (y, text) in &y_ticks {
-        out.push(Shape::Line(
-            vec![(left, py(*y)), (right, py(*y))],
-            GRID,
-            1.0,
-        ));
-        out.push(Shape::Line(
-            vec![(left - 5.0, py(*y)), (left, py(*y))],
-            AXIS,
-            1.0,
-        ));
+    for (y, text) in y_ticks {
+        let y = p.py(*y);
+        out.push(Shape::Line(vec![(left, y), (right, y)], GRID, 1.0));
+        out.push(Shape::Line(vec![(left - 5.0, y), (left, y)], AXIS, 1.0));
         out.push(Shape::Text(Label::new(
             text.clone(),
             left - 8.0,
-            py(*y),
+            y,
             TICK_SIZE,
             HAlign::Right,
             VAlign::Middle,
@@ -271,21 +310,25 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
         )
         .vertical(),
     ));
+}
 
-    let clamp = |y: f64| y.clamp(top, bottom);
-    // Bands first (all of them), then the mean lines on top.
+/// The bands (all of them), then the mean lines on top.
+fn bands(out: &mut Vec<Shape>, c: &BandChart, p: &Panel) {
+    let xs: Vec<f64> = c.x.iter().map(|&v| axis_value(c.x_log, v)).collect();
+    let ly = |v: f64| axis_value(c.y_log, v);
+    let clamp = |y: f64| y.clamp(p.top, p.bottom);
     for (i, b) in c.bands.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
         for run in finite_runs(&xs, &b.mean, &b.std) {
-            let band = |m: f64, s: f64, sign: f64| clamp(py(ly(m + sign * s)));
+            let band = |m: f64, s: f64, sign: f64| clamp(p.py(ly(m + sign * s)));
             let mut poly: Vec<(f64, f64)> = run
                 .iter()
-                .map(|&(x, m, s)| (px(x), band(m, s, 1.0)))
+                .map(|&(x, m, s)| (p.px(x), band(m, s, 1.0)))
                 .collect();
             // On a log axis a band reaching 0 or below is cut at the bottom.
             poly.extend(run.iter().rev().map(|&(x, m, s)| {
                 let lo = band(m, s, -1.0);
-                (px(x), if lo.is_finite() { lo } else { bottom })
+                (p.px(x), if lo.is_finite() { lo } else { p.bottom })
             }));
             out.push(Shape::Fill(poly, color, BAND_ALPHA));
         }
@@ -297,7 +340,10 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             &b.mean.iter().map(|&m| ly(m)).collect::<Vec<_>>(),
             &b.std,
         ) {
-            let pts: Vec<(f64, f64)> = run.iter().map(|&(x, m, _)| (px(x), clamp(py(m)))).collect();
+            let pts: Vec<(f64, f64)> = run
+                .iter()
+                .map(|&(x, m, _)| (p.px(x), clamp(p.py(m))))
+                .collect();
             if pts.len() <= 12 {
                 // Few points: a marker on each.
                 for &(x, y) in &pts {
@@ -311,7 +357,16 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             out.push(Shape::Line(pts, color, 2.5));
         }
     }
-    // Legend above the panel, right-aligned: a swatch and a name per arm.
+}
+
+/// The legend above the panel, right-aligned: a swatch and a name per arm.
+fn legend(
+    out: &mut Vec<Shape>,
+    c: &BandChart,
+    font: &ab_glyph::FontRef<'static>,
+    rows: &[Vec<usize>],
+    right: f64,
+) {
     for (r, row) in rows.iter().enumerate() {
         let mut x = right;
         let y = 60.0 + 20.0 * r as f64;
@@ -342,7 +397,6 @@ fn layout(c: &BandChart, font: &ab_glyph::FontRef<'static>) -> Vec<Shape> {
             x -= 24.0 + 18.0;
         }
     }
-    out
 }
 
 /// Maximal runs of consecutive points where x, mean and std are all finite.

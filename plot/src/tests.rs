@@ -3,6 +3,7 @@
 use std::io;
 use std::path::{Path, PathBuf};
 
+use crate::bands::{band_chart_svg, Band, BandChart};
 use crate::curve::{
     format_steps, learning_curve_png, CurveLayout, CurvePoint, CURVE_HEIGHT, CURVE_WIDTH,
     EXTRINSIC_LINE, INTRINSIC_LINE, SUCCESS_LINE,
@@ -508,8 +509,43 @@ fn learning_curve_edge_cases_do_not_panic() {
 /// Renders the example pictures for looking at:
 /// `cargo test plot::tests::render_examples -- --ignored`.
 #[test]
-#[ignore = "writes /tmp/plot-heatmap.png, /tmp/plot-trace.png and /tmp/plot-curve.png for inspection"]
+#[ignore = "writes /tmp/plot-heatmap.png, /tmp/plot-trace.png, /tmp/plot-curve.png and /tmp/plot-bands*.svg for inspection"]
 fn render_examples() {
+    let x: Vec<f64> = (0..=40).map(|i| f64::from(i) * 2500.0).collect();
+    let arm = |name: &str, k: f64| Band {
+        name: name.into(),
+        mean: x.iter().map(|v| 1.0 - (-v / k).exp()).collect(),
+        std: x.iter().map(|v| 0.1 * (-v / (2.0 * k)).exp()).collect(),
+    };
+    let names = [
+        "baseline",
+        "additive",
+        "potential",
+        "horizon-potential",
+        "first-visit",
+        "count",
+        "cleanrl",
+        "rllib",
+        "baseline-unmasked",
+    ];
+    let bands: Vec<Band> = names
+        .iter()
+        .enumerate()
+        .map(|(i, n)| arm(n, 5000.0 * (i + 1) as f64))
+        .collect();
+    let chart = BandChart::over_steps(
+        "success rate over seeds".into(),
+        "success rate".into(),
+        x.clone(),
+        bands,
+    );
+    band_chart_svg(Path::new("/tmp/plot-bands.svg"), &chart).expect("bands");
+    let log = BandChart {
+        x_log: true,
+        y_log: true,
+        ..chart
+    };
+    band_chart_svg(Path::new("/tmp/plot-bands-log.svg"), &log).expect("log bands");
     let (values, rock, glyphs) = example_grid();
     heatmap_png(
         Path::new("/tmp/plot-heatmap.png"),
