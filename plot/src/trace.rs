@@ -276,14 +276,34 @@ pub(crate) fn draw_trace(
             line(&area, vec![(x, p.top), (x, p.top + p.height)], GRID, 1)?;
         }
     }
+    value_panel(&area, l, t, font, labels)?;
+    if let (Some(c), Some(category)) = (l.category, t.category) {
+        category_panel(&area, l, c, category, font, labels)?;
+    }
+    x_axis(
+        &area,
+        l,
+        t,
+        panels.last().copied().unwrap_or(l.value),
+        labels,
+    )?;
+    area.present().map_err(draw_err)
+}
 
-    // Value panel.
+/// The value panel: y ticks, frame, the value line with markers, its title.
+fn value_panel(
+    area: &Area<'_>,
+    l: &TraceLayout,
+    t: &Trace,
+    font: &FontRef<'static>,
+    labels: &mut Vec<Label>,
+) -> Result<(), String> {
     let v = l.value;
     for (y, text) in &l.y_ticks {
         let py = v.py(*y);
         let yi = py.round() as i32;
-        line(&area, vec![(v.left, yi), (v.left + v.width, yi)], GRID, 1)?;
-        line(&area, vec![(v.left - 5, yi), (v.left, yi)], AXIS, 1)?;
+        line(area, vec![(v.left, yi), (v.left + v.width, yi)], GRID, 1)?;
+        line(area, vec![(v.left - 5, yi), (v.left, yi)], AXIS, 1)?;
         labels.push(Label::new(
             text.clone(),
             f64::from(v.left - 8),
@@ -293,7 +313,7 @@ pub(crate) fn draw_trace(
             VAlign::Middle,
         ));
     }
-    frame(&area, &v)?;
+    frame(area, &v)?;
     let points: Vec<Option<(i32, i32)>> = t
         .values
         .iter()
@@ -306,7 +326,7 @@ pub(crate) fn draw_trace(
     for run in points.split(Option::is_none) {
         let run: Vec<(i32, i32)> = run.iter().flatten().copied().collect();
         if run.len() >= 2 {
-            line(&area, run, VALUE_LINE, 2)?;
+            line(area, run, VALUE_LINE, 2)?;
         }
     }
     // Markers only while they stay apart.
@@ -334,74 +354,92 @@ pub(crate) fn draw_trace(
         .vertical(),
     );
 
-    // Category panel.
-    if let (Some(c), Some((label, names, idx))) = (l.category, t.category) {
-        for (k, name) in names.iter().enumerate() {
-            let py = c.py(k as f64);
-            let yi = py.round() as i32;
-            line(&area, vec![(c.left, yi), (c.left + c.width, yi)], GRID, 1)?;
-            line(&area, vec![(c.left - 5, yi), (c.left, yi)], AXIS, 1)?;
-            labels.push(Label::new(
-                name.clone(),
-                f64::from(c.left - 8),
-                py,
-                TICK_SIZE,
-                HAlign::Right,
-                VAlign::Middle,
-            ));
-        }
-        frame(&area, &c)?;
-        let half = f64::from(c.width) / l.steps as f64 / 2.0;
-        let levels: Vec<Option<i32>> = idx
-            .iter()
-            .map(|&k| (k < names.len()).then(|| c.py(k as f64).round() as i32))
-            .collect();
-        // Step line: level k_s held over [s - 1/2, s + 1/2], joined vertically.
-        let mut path: Vec<(i32, i32)> = Vec::new();
-        for (s, level) in levels.iter().enumerate() {
-            let Some(y) = *level else {
-                if path.len() >= 2 {
-                    line(&area, std::mem::take(&mut path), CATEGORY_LINE, 2)?;
-                }
-                path.clear();
-                continue;
-            };
-            let x = l.px(s as f64);
-            path.push(((x - half).round() as i32, y));
-            path.push(((x + half).round() as i32, y));
-        }
-        if path.len() >= 2 {
-            line(&area, path, CATEGORY_LINE, 2)?;
-        }
-        let r = if l.steps <= 100 { 3 } else { 0 };
-        for (s, level) in levels.iter().enumerate().filter(|_| r > 0) {
-            if let Some(y) = *level {
-                let x = l.px(s as f64).round() as i32;
-                area.draw(&Circle::new((x, y), r, rgb(CATEGORY_LINE).filled()))
-                    .map_err(draw_err)?;
-            }
-        }
-        let size = fit_size(font, label, LABEL_SIZE, 9.0, f64::from(c.height) - 4.0);
-        labels.push(
-            Label::new(
-                label,
-                f64::from(l.y_title_x),
-                f64::from(c.top) + f64::from(c.height) / 2.0,
-                size,
-                HAlign::Center,
-                VAlign::Middle,
-            )
-            .vertical(),
-        );
-    }
+    Ok(())
+}
 
-    // x axis: ticks under the lowest panel, step numbers, actions, title.
-    let bottom = panels.last().map_or(v, |p| *p);
+/// The categorical panel: one level per name, the step line with markers, its title.
+fn category_panel(
+    area: &Area<'_>,
+    l: &TraceLayout,
+    c: Panel,
+    (label, names, idx): (&str, &[String], &[usize]),
+    font: &FontRef<'static>,
+    labels: &mut Vec<Label>,
+) -> Result<(), String> {
+    for (k, name) in names.iter().enumerate() {
+        let py = c.py(k as f64);
+        let yi = py.round() as i32;
+        line(area, vec![(c.left, yi), (c.left + c.width, yi)], GRID, 1)?;
+        line(area, vec![(c.left - 5, yi), (c.left, yi)], AXIS, 1)?;
+        labels.push(Label::new(
+            name.clone(),
+            f64::from(c.left - 8),
+            py,
+            TICK_SIZE,
+            HAlign::Right,
+            VAlign::Middle,
+        ));
+    }
+    frame(area, &c)?;
+    let half = f64::from(c.width) / l.steps as f64 / 2.0;
+    let levels: Vec<Option<i32>> = idx
+        .iter()
+        .map(|&k| (k < names.len()).then(|| c.py(k as f64).round() as i32))
+        .collect();
+    // Step line: level k_s held over [s - 1/2, s + 1/2], joined vertically.
+    let mut path: Vec<(i32, i32)> = Vec::new();
+    for (s, level) in levels.iter().enumerate() {
+        let Some(y) = *level else {
+            if path.len() >= 2 {
+                line(area, std::mem::take(&mut path), CATEGORY_LINE, 2)?;
+            }
+            path.clear();
+            continue;
+        };
+        let x = l.px(s as f64);
+        path.push(((x - half).round() as i32, y));
+        path.push(((x + half).round() as i32, y));
+    }
+    if path.len() >= 2 {
+        line(area, path, CATEGORY_LINE, 2)?;
+    }
+    let r = if l.steps <= 100 { 3 } else { 0 };
+    for (s, level) in levels.iter().enumerate().filter(|_| r > 0) {
+        if let Some(y) = *level {
+            let x = l.px(s as f64).round() as i32;
+            area.draw(&Circle::new((x, y), r, rgb(CATEGORY_LINE).filled()))
+                .map_err(draw_err)?;
+        }
+    }
+    let size = fit_size(font, label, LABEL_SIZE, 9.0, f64::from(c.height) - 4.0);
+    labels.push(
+        Label::new(
+            label,
+            f64::from(l.y_title_x),
+            f64::from(c.top) + f64::from(c.height) / 2.0,
+            size,
+            HAlign::Center,
+            VAlign::Middle,
+        )
+        .vertical(),
+    );
+    Ok(())
+}
+
+/// The x axis under the lowest panel: ticks, step numbers, actions, title.
+fn x_axis(
+    area: &Area<'_>,
+    l: &TraceLayout,
+    t: &Trace,
+    bottom: Panel,
+    labels: &mut Vec<Label>,
+) -> Result<(), String> {
+    let v = l.value;
     let axis_y = bottom.top + bottom.height;
     for &s in &l.x_ticks {
         let x = l.px(s as f64);
         let xi = x.round() as i32;
-        line(&area, vec![(xi, axis_y), (xi, axis_y + 5)], AXIS, 1)?;
+        line(area, vec![(xi, axis_y), (xi, axis_y + 5)], AXIS, 1)?;
         labels.push(Label::new(
             s.to_string(),
             x,
@@ -441,5 +479,5 @@ pub(crate) fn draw_trace(
         HAlign::Center,
         VAlign::Middle,
     ));
-    area.present().map_err(draw_err)
+    Ok(())
 }
