@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
+use fulcrum_empowerment::service::{Ask, Client, ServeConfig, Tables};
 use fulcrum_empowerment::{Engine, Limits, ToolSel};
 use fulcrum_run::process::{spawn_until_ready, Ready};
 use fulcrum_shared::load_world;
@@ -54,7 +55,6 @@ pub(super) fn sample_states(e: &Engine, n: usize) -> Vec<fulcrum_shared::State> 
 /// The service: round-trip latency, lookup throughput with 1 and 2 client processes,
 /// and the two floors (in-process lookups, a Unix datagram ping-pong).
 pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
-    use fulcrum_empowerment::service::{Ask, Client, ServeConfig, Tables};
     let world = "exp2";
     let w = load_world(world)?;
     let ns = format!("bench-{}", std::process::id());
@@ -63,7 +63,21 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
     let e = Engine::new(&w, Limits::default())?;
     let batch256 = sample_states(&e, 256);
     let rounds = if quick { 2000 } else { 20000 };
-    for (label, states) in [("1 state", &batch256[..1]), ("256 states", &batch256[..])] {
+    let secs = if quick { 1.0 } else { 3.0 };
+    round_trips(&mut c, &batch256, rounds, figs)?;
+    throughput(c, &ns, world, &batch256, secs, figs)?;
+    idle_cpu(&serve, quick, figs);
+    floors(&w, &batch256, rounds, secs, figs)
+}
+
+/// Round trips of one client: p50 and p99 for 1 and 256 states, and after an idle gap.
+fn round_trips(
+    c: &mut Client,
+    batch256: &[fulcrum_shared::State],
+    rounds: usize,
+    figs: &mut Vec<Figure>,
+) -> Result<()> {
+    for (label, states) in [("1 state", &batch256[..1]), ("256 states", batch256)] {
         let mut t = Vec::with_capacity(rounds);
         for _ in 0..rounds {
             let t0 = Instant::now();
@@ -109,9 +123,20 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
             "({gapped} requests; the service sleeps on its event, as in the ping-pong floor)"
         ),
     });
+    Ok(())
+}
+
+/// Lookups per second: one client in this process, then two client processes.
+fn throughput(
+    mut c: Client,
+    ns: &str,
+    world: &str,
+    batch256: &[fulcrum_shared::State],
+    secs: f64,
+    figs: &mut Vec<Figure>,
+) -> Result<()> {
     // Throughput, one client in this process, pipelined batches of 256.
-    let secs = if quick { 1.0 } else { 3.0 };
-    let n1 = lookup_for(&mut c, &batch256, secs)?;
+    let n1 = lookup_for(&mut c, batch256, secs)?;
     figs.push(Figure {
         zero_ok: false,
         name: "service lookups/s, 1 client, batches of 256".into(),
@@ -128,7 +153,7 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
                 .args([
                     "__bench-client",
                     "--namespace",
-                    &ns,
+                    ns,
                     "--world",
                     world,
                     "--seconds",
@@ -156,6 +181,11 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
         unit: "states/s",
         note: "(each pipelined, batches of 256)".into(),
     });
+    Ok(())
+}
+
+/// The service's CPU while nobody asks.
+fn idle_cpu(serve: &ServeChild, quick: bool, figs: &mut Vec<Figure>) {
     // Idle: the service blocks on its listener once its short spin is over.
     let idle = if quick { 0.5 } else { 2.0 };
     std::thread::sleep(std::time::Duration::from_millis(100));
@@ -169,6 +199,16 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
         unit: "% of a core",
         note: format!("({used:.2} s of CPU in {idle} s idle, 10 ms clock ticks)"),
     });
+}
+
+/// The floors: the same lookups in-process, and a Unix datagram ping-pong.
+fn floors(
+    w: &fulcrum_shared::World,
+    batch256: &[fulcrum_shared::State],
+    rounds: usize,
+    secs: f64,
+    figs: &mut Vec<Figure>,
+) -> Result<()> {
     // Floor 1: the same lookups in-process, no IPC.
     let cfg = ServeConfig {
         horizon_sum: false,
@@ -184,7 +224,7 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
         cache_bytes: 1 << 20,
         spin: std::time::Duration::ZERO,
     };
-    let mut tables = Tables::new(Engine::new(&w, Limits::default())?, cfg)?;
+    let mut tables = Tables::new(Engine::new(w, Limits::default())?, cfg)?;
     let mut req = Box::new(fulcrum_shared::msg::EmpRequest {
         world_hash: w.content_hash(),
         kind: fulcrum_shared::msg::kind::LOOKUP,
