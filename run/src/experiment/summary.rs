@@ -1,7 +1,6 @@
 //! Reading the finished runs into the experiment's numbers: curves on a common grid,
 //! per-seed and per-arm summaries, and each arm compared with the first.
 
-use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::{Context, Result};
@@ -133,6 +132,26 @@ pub(super) struct Summary {
     pub(super) comparisons: Vec<Comparison>,
 }
 
+/// What one finished seed gives: its summary, its curves on the grid and the samples
+/// the arms are compared by.
+struct SeedRun {
+    summary: SeedSummary,
+    success: Vec<f64>,
+    ret: Vec<f64>,
+    auc: f64,
+    reach: Option<f64>,
+}
+
+/// The samples of one arm the tests compare: steps to threshold censored at the budget,
+/// the areas, the (time, solved) events and (solved, seeds).
+#[derive(Default)]
+struct Samples {
+    censored: Vec<f64>,
+    aucs: Vec<f64>,
+    events: Vec<(f64, bool)>,
+    solved: (usize, usize),
+}
+
 /// Reads the finished runs of `jobs`, writes summary.{md,json} and the plots.
 pub(super) fn aggregate(
     spec: &Spec,
@@ -144,138 +163,28 @@ pub(super) fn aggregate(
 ) -> Result<String> {
     let g = stats::grid(spec.steps as f64, GRID);
     let mut out = Vec::new();
-    let mut censored: BTreeMap<String, Vec<f64>> = BTreeMap::new();
-    let mut aucs: BTreeMap<String, Vec<f64>> = BTreeMap::new();
-    let mut events: BTreeMap<String, Vec<(f64, bool)>> = BTreeMap::new();
-    let mut solved: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    let mut samples = Vec::new();
     for arm in arms {
         let mine: Vec<&Job> = jobs
             .iter()
             .filter(|j| spec.arms[j.arm].name == arm.name)
             .collect();
-        let mut per_seed = Vec::new();
-        let (mut succ_curves, mut ret_curves) = (Vec::new(), Vec::new());
+        let mut runs = Vec::new();
         for j in &mine {
-            if state(&j.dir, spec.steps) != State::Done {
-                continue;
+            if state(&j.dir, spec.steps) == State::Done {
+                runs.push(seed_run(j, spec, &g, threshold, smooth)?);
             }
-            let rows = read_metrics(&RunPaths { dir: j.dir.clone() }.metrics())
-                .with_context(|| format!("cannot read the metrics of {}", j.dir.display()))?;
-            let pts: Vec<Point> = rows
-                .iter()
-                .filter(|r| r.env_steps <= spec.steps)
-                .map(Point::from)
-                .collect();
-            let sm = stats::smooth(&pts, smooth);
-            let sc = stats::interpolate(&sm.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), &g);
-            let rc = stats::interpolate(&sm.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>(), &g);
-            let (fs, fr) = stats::final_rates(&pts, FINAL_FRACTION);
-            let auc = stats::area(&g, &sc);
-            let reach = stats::steps_to(&sm, threshold);
-            per_seed.push(SeedSummary {
-                seed: j.seed,
-                steps_to_threshold: reach,
-                final_success: finite(fs),
-                final_return: finite(fr),
-                auc: finite(auc),
-                final_intrinsic_return: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| {
-                    r.intrinsic_return
-                })),
-                final_pickup_rate: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| {
-                    r.pickup_rate
-                })),
-                final_e_positive: finite(tail_mean_e_positive(&rows, FINAL_FRACTION)),
-                first_pickup_step: rows
-                    .iter()
-                    .find(|r| r.episodes > 0 && r.pickup_rate > 0.0)
-                    .map(|r| r.env_steps as f64),
-            });
-            censored
-                .entry(arm.name.clone())
-                .or_default()
-                .push(reach.unwrap_or(spec.steps as f64));
-            events
-                .entry(arm.name.clone())
-                .or_default()
-                .push((reach.unwrap_or(spec.steps as f64), reach.is_some()));
-            aucs.entry(arm.name.clone()).or_default().push(auc);
-            succ_curves.push(sc);
-            ret_curves.push(rc);
         }
-        let reached: Vec<f64> = per_seed
-            .iter()
-            .filter_map(|s| s.steps_to_threshold)
-            .collect();
-        let col = |f: fn(&SeedSummary) -> Option<f64>| -> Vec<f64> {
-            per_seed.iter().filter_map(f).collect()
-        };
-        let (sb, rb) = (stats::band(&succ_curves), stats::band(&ret_curves));
-        let cens = censored.get(&arm.name).cloned().unwrap_or_default();
-        let ev = events.get(&arm.name).cloned().unwrap_or_default();
-        solved.insert(arm.name.clone(), (reached.len(), per_seed.len()));
-        let median = |x: &[f64]| {
-            let mut v = x.to_vec();
-            v.sort_by(f64::total_cmp);
-            let n = v.len();
-            if n == 0 {
-                f64::NAN
-            } else if n % 2 == 1 {
-                v[n / 2]
-            } else {
-                0.5 * (v[n / 2 - 1] + v[n / 2])
-            }
-        };
-        out.push(ArmSummary {
-            iqm_steps: finite(stats::iqm(&cens)),
-            iqm_ci: stats::bootstrap_ci(&cens, stats::iqm, 2000, 0x1a2b, 0.95),
-            median_steps: finite(median(&cens)),
-            solved_by: stats::solved_by(&ev, &g).into_iter().map(finite).collect(),
-            name: arm.name.clone(),
-            args: arm.args.clone(),
-            seeds: mine.len(),
-            finished: per_seed.len(),
-            reached: reached.len(),
-            steps_to_threshold: MeanStd::of(&reached),
-            final_success: MeanStd::of(&col(|s| s.final_success)),
-            final_return: MeanStd::of(&col(|s| s.final_return)),
-            auc: MeanStd::of(&col(|s| s.auc)),
-            final_intrinsic_return: MeanStd::of(&col(|s| s.final_intrinsic_return)),
-            final_pickup_rate: MeanStd::of(&col(|s| s.final_pickup_rate)),
-            final_e_positive: MeanStd::of(&col(|s| s.final_e_positive)),
-            first_pickup_step: MeanStd::of(&col(|s| s.first_pickup_step)),
-            picked: col(|s| s.first_pickup_step).len(),
-            per_seed,
-            success_mean: sb.iter().map(|b| finite(b.0)).collect(),
-            success_std: sb.iter().map(|b| finite(b.1)).collect(),
-            return_mean: rb.iter().map(|b| finite(b.0)).collect(),
-            return_std: rb.iter().map(|b| finite(b.1)).collect(),
-        });
+        let (summary, s) = arm_summary(arm, mine.len(), runs, &g, spec.steps as f64);
+        out.push(summary);
+        samples.push(s);
     }
-    let mut comparisons = Vec::new();
-    if let Some(first) = arms.first() {
-        for arm in arms.iter().skip(1) {
-            let get =
-                |m: &BTreeMap<String, Vec<f64>>, k: &str| m.get(k).cloned().unwrap_or_default();
-            comparisons.push(Comparison {
-                arm: arm.name.clone(),
-                against: first.name.clone(),
-                steps_to_threshold: stats::welch(
-                    &get(&censored, &arm.name),
-                    &get(&censored, &first.name),
-                ),
-                auc: stats::welch(&get(&aucs, &arm.name), &get(&aucs, &first.name)),
-                fisher_p: {
-                    let (a, an) = solved.get(&arm.name).copied().unwrap_or_default();
-                    let (b, bn) = solved.get(&first.name).copied().unwrap_or_default();
-                    stats::fisher_exact(a, an, b, bn)
-                },
-                log_rank: stats::log_rank(
-                    &events.get(&arm.name).cloned().unwrap_or_default(),
-                    &events.get(&first.name).cloned().unwrap_or_default(),
-                ),
-            });
-        }
-    }
+    let comparisons = arms
+        .iter()
+        .zip(&samples)
+        .skip(1)
+        .map(|(arm, s)| compare(&arm.name, s, &arms[0].name, &samples[0]))
+        .collect();
     let summary = Summary {
         world: spec.world.clone(),
         steps: spec.steps,
@@ -293,4 +202,132 @@ pub(super) fn aggregate(
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     draw(&summary, dir)?;
     Ok(markdown)
+}
+
+/// One finished seed's metrics, smoothed and put on the grid `g`.
+fn seed_run(j: &Job, spec: &Spec, g: &[f64], threshold: f64, smooth: usize) -> Result<SeedRun> {
+    let rows = read_metrics(&RunPaths { dir: j.dir.clone() }.metrics())
+        .with_context(|| format!("cannot read the metrics of {}", j.dir.display()))?;
+    let pts: Vec<Point> = rows
+        .iter()
+        .filter(|r| r.env_steps <= spec.steps)
+        .map(Point::from)
+        .collect();
+    let sm = stats::smooth(&pts, smooth);
+    let success = stats::interpolate(&sm.iter().map(|p| (p.0, p.1)).collect::<Vec<_>>(), g);
+    let ret = stats::interpolate(&sm.iter().map(|p| (p.0, p.2)).collect::<Vec<_>>(), g);
+    let (fs, fr) = stats::final_rates(&pts, FINAL_FRACTION);
+    let auc = stats::area(g, &success);
+    let reach = stats::steps_to(&sm, threshold);
+    let summary = SeedSummary {
+        seed: j.seed,
+        steps_to_threshold: reach,
+        final_success: finite(fs),
+        final_return: finite(fr),
+        auc: finite(auc),
+        final_intrinsic_return: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| {
+            r.intrinsic_return
+        })),
+        final_pickup_rate: finite(tail_per_episode(&rows, FINAL_FRACTION, |r| r.pickup_rate)),
+        final_e_positive: finite(tail_mean_e_positive(&rows, FINAL_FRACTION)),
+        first_pickup_step: rows
+            .iter()
+            .find(|r| r.episodes > 0 && r.pickup_rate > 0.0)
+            .map(|r| r.env_steps as f64),
+    };
+    Ok(SeedRun {
+        summary,
+        success,
+        ret,
+        auc,
+        reach,
+    })
+}
+
+/// The median of `x` (NaN when empty).
+fn median(x: &[f64]) -> f64 {
+    let mut v = x.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// An arm's summary over its finished seeds (of `seeds`), and its samples.
+fn arm_summary(
+    arm: &Arm,
+    seeds: usize,
+    runs: Vec<SeedRun>,
+    g: &[f64],
+    budget: f64,
+) -> (ArmSummary, Samples) {
+    let s = Samples {
+        censored: runs.iter().map(|r| r.reach.unwrap_or(budget)).collect(),
+        aucs: runs.iter().map(|r| r.auc).collect(),
+        events: runs
+            .iter()
+            .map(|r| (r.reach.unwrap_or(budget), r.reach.is_some()))
+            .collect(),
+        solved: (
+            runs.iter().filter(|r| r.reach.is_some()).count(),
+            runs.len(),
+        ),
+    };
+    let succ_curves: Vec<Vec<f64>> = runs.iter().map(|r| r.success.clone()).collect();
+    let ret_curves: Vec<Vec<f64>> = runs.iter().map(|r| r.ret.clone()).collect();
+    let per_seed: Vec<SeedSummary> = runs.into_iter().map(|r| r.summary).collect();
+    let reached: Vec<f64> = per_seed
+        .iter()
+        .filter_map(|s| s.steps_to_threshold)
+        .collect();
+    let col = |f: fn(&SeedSummary) -> Option<f64>| -> Vec<f64> {
+        per_seed.iter().filter_map(f).collect()
+    };
+    let (sb, rb) = (stats::band(&succ_curves), stats::band(&ret_curves));
+    let summary = ArmSummary {
+        iqm_steps: finite(stats::iqm(&s.censored)),
+        iqm_ci: stats::bootstrap_ci(&s.censored, stats::iqm, 2000, 0x1a2b, 0.95),
+        median_steps: finite(median(&s.censored)),
+        solved_by: stats::solved_by(&s.events, g)
+            .into_iter()
+            .map(finite)
+            .collect(),
+        name: arm.name.clone(),
+        args: arm.args.clone(),
+        seeds,
+        finished: per_seed.len(),
+        reached: reached.len(),
+        steps_to_threshold: MeanStd::of(&reached),
+        final_success: MeanStd::of(&col(|s| s.final_success)),
+        final_return: MeanStd::of(&col(|s| s.final_return)),
+        auc: MeanStd::of(&col(|s| s.auc)),
+        final_intrinsic_return: MeanStd::of(&col(|s| s.final_intrinsic_return)),
+        final_pickup_rate: MeanStd::of(&col(|s| s.final_pickup_rate)),
+        final_e_positive: MeanStd::of(&col(|s| s.final_e_positive)),
+        first_pickup_step: MeanStd::of(&col(|s| s.first_pickup_step)),
+        picked: col(|s| s.first_pickup_step).len(),
+        success_mean: sb.iter().map(|b| finite(b.0)).collect(),
+        success_std: sb.iter().map(|b| finite(b.1)).collect(),
+        return_mean: rb.iter().map(|b| finite(b.0)).collect(),
+        return_std: rb.iter().map(|b| finite(b.1)).collect(),
+        per_seed,
+    };
+    (summary, s)
+}
+
+/// Arm `a` against arm `b` (the first arm).
+fn compare(a: &str, sa: &Samples, b: &str, sb: &Samples) -> Comparison {
+    Comparison {
+        arm: a.to_string(),
+        against: b.to_string(),
+        steps_to_threshold: stats::welch(&sa.censored, &sb.censored),
+        auc: stats::welch(&sa.aucs, &sb.aucs),
+        fisher_p: stats::fisher_exact(sa.solved.0, sa.solved.1, sb.solved.0, sb.solved.1),
+        log_rank: stats::log_rank(&sa.events, &sb.events),
+    }
 }
