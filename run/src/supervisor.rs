@@ -115,6 +115,7 @@ struct Supervisor {
     service: Option<Child>,
     bridge: Option<Child>,
     learner: Option<Child>,
+    /// The learner's stdout lines, until it closes (then `never()`).
     learner_lines: Receiver<String>,
     /// Each actor and its incarnation.
     actors: Vec<(Option<Child>, u32)>,
@@ -311,6 +312,7 @@ impl Supervisor {
             select! {
                 recv(self.learner_lines) -> line => match line {
                     Ok(l) => learner_line(&mut progress, &l),
+                    // Closed: the learner is exiting; its exit event follows.
                     Err(_) => self.learner_lines = never(),
                 },
                 recv(stop_now) -> _ => {
@@ -337,11 +339,17 @@ impl Supervisor {
     fn learner_ended(&mut self, progress: &mut Progress, stopping: bool) -> Result<Outcome> {
         let mut l = self.learner.take().context("no learner")?;
         let s = l.wait().context("cannot wait for the learner")?;
-        // Its stdout is closed: the reader thread ends after the last line.
-        for line in self.learner_lines.iter() {
+        // Its stdout is closed: the lines not yet seen are all in the channel (unless
+        // they were all seen and the channel is `never()` already).
+        let lines = std::mem::replace(&mut self.learner_lines, never());
+        for line in lines.try_iter() {
             learner_line(progress, &line);
         }
-        self.learner_lines = never();
+        // The reader thread may still be between its last read and its last send:
+        // wait for it to close the channel, a moment at most.
+        while let Ok(line) = lines.recv_timeout(Duration::from_millis(100)) {
+            learner_line(progress, &line);
+        }
         progress.finish();
         match s.code() {
             Some(0) => Ok(Outcome::Finished),

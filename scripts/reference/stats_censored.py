@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Reference values for learner/tests/stats_censored.rs (pip install scipy numpy;
+"""Reference values for run/tests/stats_censored.rs (pip install scipy numpy;
 lifelines, if installed, cross-checks the log-rank test and Kaplan-Meier)."""
 
 import numpy as np
