@@ -54,8 +54,8 @@ use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, View};
 use safetensors::SafeTensors;
 
+use crate::adam::Adam;
 use crate::net::Net;
-use crate::ppo::Adam;
 
 /// The format version this build writes and reads.
 pub const FORMAT_VERSION: u32 = 1;

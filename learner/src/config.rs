@@ -9,7 +9,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::ppo::PpoConfig;
+use fulcrum_shared::ppo_config::PpoConfig;
 
 /// The resolved configuration of a run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -321,7 +321,7 @@ mod tests {
     /// were trained: unmasked, no advantage floor, annealed learning rate, no KL term.
     #[test]
     fn presets_round_trip_and_old_files_keep_their_meaning() {
-        use crate::ppo::Preset;
+        use crate::preset::Preset;
         for p in [Preset::Fulcrum, Preset::CleanRl, Preset::Rllib] {
             let c = RunConfig {
                 ppo: p.ppo(),

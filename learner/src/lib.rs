@@ -8,10 +8,14 @@
 //! loop that the multi-process training of `fulcrum train` distributes); [`stats`] is
 //! what `fulcrum experiment` reports.
 
+/// Adam with its state in the open, and its loop over flat buffers.
+pub mod adam;
 /// Checkpoints: weights, optimiser state, counters, written atomically.
 pub mod checkpoint;
 /// The run configuration (`config.toml`).
 pub mod config;
+/// What a PPO step reports (losses, entropy, KL, clip fraction).
+pub mod diagnostics;
 /// The PPO update on flat buffers (hand-written forward and backward, fused Adam).
 pub mod fused;
 /// Generalised advantage estimation with termination and truncation.
@@ -20,10 +24,14 @@ pub mod gae;
 pub mod local;
 /// The actor-critic network.
 pub mod net;
-/// The PPO loss, Adam and gradient clipping.
+/// The PPO loss and gradient clipping on candle tensors.
 pub mod ppo;
+/// Named sets of PPO settings (fulcrum, CleanRL, RLlib).
+pub mod preset;
 /// The learner process of `fulcrum train`.
 pub mod run;
+/// The compiled variants of the inner loops (baseline, AVX2, AVX-512).
+pub mod simd;
 /// Aggregating the learning curves of several runs (means, bands, Welch's t-test) and
 /// comparing times to solve (IQM, bootstrap intervals, Fisher's exact, log-rank,
 /// Kaplan-Meier).

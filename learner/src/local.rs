@@ -11,10 +11,12 @@ use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::adam::Adam;
+use crate::diagnostics::Stats;
 use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
 use crate::net::{mask_bias, sample, Net, NetShape};
-use crate::ppo::{Adam, PpoConfig, Stats};
+use fulcrum_shared::ppo_config::PpoConfig;
 
 /// What to train.
 #[derive(Debug, Clone, Copy)]

@@ -31,12 +31,14 @@ use iceoryx2::prelude::*;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::adam::Adam;
 use crate::checkpoint::{self, Extra};
 use crate::config::RunConfig;
+use crate::diagnostics::Stats;
 use crate::gae::{gae, Rollout};
 use crate::local::{update, UpdateData};
 use crate::net::Net;
-use crate::ppo::{Adam, PpoConfig, Stats};
+use fulcrum_shared::ppo_config::PpoConfig;
 
 /// The columns of `metrics.csv`, in order.
 pub const METRICS_COLUMNS: &[&str] = &[

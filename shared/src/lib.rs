@@ -26,6 +26,8 @@ pub mod mask;
 pub mod msg;
 /// World files: parsing and validation with file:line:col errors.
 pub mod parse;
+/// PPO's hyperparameters: the `[ppo]` table of a run's `config.toml`.
+pub mod ppo_config;
 /// The packed state and its text form.
 pub mod state;
 /// Trajectory chunks and policy weights in shared memory.
