@@ -10,7 +10,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::world::{MAX_OBJECTS, MAX_SIDE, MAX_TOOLS};
+use crate::state::{MAX_OBJECTS, MAX_TOOLS};
+use crate::world::MAX_SIDE;
 
 /// Tool kinds in the order generated worlds use them.
 pub const TOOL_KINDS: [&str; 6] = ["axe", "pickaxe", "key", "wand", "tin_opener", "katana"];

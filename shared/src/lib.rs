@@ -10,6 +10,8 @@
 
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
+/// The text form of states (`agent=X,Y holding=... mode=... obj=...`).
+pub mod describe;
 /// Episodes, task rewards and the learner's observation encoding.
 pub mod env;
 /// Atomic file writes that leave device nodes and FIFOs alone.
@@ -28,16 +30,17 @@ pub mod msg;
 pub mod parse;
 /// PPO's hyperparameters: the `[ppo]` table of a run's `config.toml`.
 pub mod ppo_config;
-/// The packed state and its text form.
+/// The packed state.
 pub mod state;
 /// Trajectory chunks and policy weights in shared memory.
 pub mod traj;
 /// The world, the rule table and the exact dynamics.
 pub mod world;
 
+pub use describe::DescribeError;
 pub use env::{Episode, ObsSpec, Outcome};
 pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
-pub use state::{DescribeError, Mode, State, BOULDER_DESTROYED};
+pub use state::{Mode, State, BOULDER_DESTROYED};
 pub use world::{
     ObjectKind, ObjectSet, Range, Rule, Task, Terrain, ToolChoice, World, APPLY, EAST, NORTH,
     SELECT0, SOUTH, WEST,

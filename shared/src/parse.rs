@@ -10,10 +10,10 @@ use serde::de::{Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::state::{State, BOULDER_DESTROYED};
+use crate::state::{State, BOULDER_DESTROYED, MAX_OBJECTS, MAX_TOOLS};
 use crate::world::{
-    cond_from_name, default_rules, EmpowermentDefaults, Object, ObjectKind, ObjectSet, Range, Rule,
-    Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_OBJECTS, MAX_SIDE, MAX_TOOLS,
+    cond_from_name, default_rules, find_object_by_name, EmpowermentDefaults, Object, ObjectKind,
+    ObjectSet, Range, Rule, Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_SIDE,
 };
 
 /// A world that could not be loaded.
@@ -663,20 +663,6 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         empowerment: emp,
         initial,
         source: text.to_string(),
-    })
-}
-
-pub(crate) fn find_object_by_name(objects: &[Object], n: &str) -> Option<usize> {
-    objects.iter().position(|o| o.name == n).or_else(|| {
-        let (kind, ord) = n.split_once('#')?;
-        let ord: usize = ord.parse().ok()?;
-        let kind = ObjectKind::from_name(kind)?;
-        objects
-            .iter()
-            .enumerate()
-            .filter(|(_, o)| o.kind == kind)
-            .nth(ord)
-            .map(|(i, _)| i)
     })
 }
 

@@ -42,7 +42,8 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use crate::{Episode, State};
+use crate::env::Episode;
+use crate::state::State;
 
 /// Most actor processes of one run.
 pub const MAX_ACTORS: usize = 64;
