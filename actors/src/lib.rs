@@ -25,13 +25,11 @@ use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use candle_core::Device;
 use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client, ClientError};
-use fulcrum_learner::checkpoint;
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::net::Net;
-use fulcrum_learner::ppo::Adam;
+use fulcrum_shared::checkpoint;
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::intrinsic::Intrinsic;
+use fulcrum_shared::layout::NetShape;
 use fulcrum_shared::msg::{item, MAX_BATCH, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{
     self, put_f32, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames, ENV_BYTES,
@@ -52,9 +50,6 @@ pub enum ActorError {
     /// iceoryx2 failed.
     #[error("shared memory: {0}")]
     Ipc(String),
-    /// candle failed.
-    #[error("candle: {0}")]
-    Candle(#[from] candle_core::Error),
     /// The empowerment service failed in a way retrying cannot fix.
     #[error("empowerment service: {0}")]
     Service(String),
@@ -179,7 +174,7 @@ pub fn run_actor(
 
     // Worlds: from the checkpoint when it was taken at this policy version.
     let mut envs: Vec<EnvRecord> = (0..m).map(|_| EnvRecord::new(world.reset())).collect();
-    if let Some(recs) = resume_records(checkpoint_path, shape, cfg.seed, id.index, v0, m, world) {
+    if let Some(recs) = resume_records(checkpoint_path, shape, id.index, v0, m, world) {
         envs = recs;
         tracing::info!(
             actor = id.index,
@@ -544,8 +539,7 @@ fn connect(
 /// The worlds of actor `index` from the checkpoint, if it was taken at `version`.
 fn resume_records(
     path: &Path,
-    shape: fulcrum_learner::net::NetShape,
-    seed: u64,
+    shape: NetShape,
     index: u32,
     version: u64,
     m: usize,
@@ -554,9 +548,8 @@ fn resume_records(
     if !path.exists() {
         return None;
     }
-    let net = Net::new(shape, seed, &Device::Cpu).ok()?;
-    let mut adam = Adam::new(&net).ok()?;
-    let extra = checkpoint::load(path, &net, &mut adam).ok()?;
+    // The whole file is checked against the network's layout, as the learner checks it.
+    let extra = checkpoint::read(path, &shape.params()).ok()?.extra;
     if extra.counters.get("update") != Some(&version) {
         return None;
     }

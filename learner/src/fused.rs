@@ -47,8 +47,9 @@ use fulcrum_shared::ppo_config::PpoConfig;
 
 use crate::adam::{adam_ranges, Adam, AdamStep};
 use crate::diagnostics::Stats;
-use crate::net::{Net, NetShape};
+use crate::net::Net;
 use crate::simd::{simd, Simd};
+use fulcrum_shared::layout::{NetShape, Offsets};
 
 /// A rollout prepared for the update.
 mod data;
@@ -56,70 +57,6 @@ mod data;
 mod kernel;
 
 pub use data::Data;
-
-/// Offsets of the parameters in the flat buffer (the order of `Net::params`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Offsets {
-    /// `policy.embed` (C*G, H).
-    pub embed: usize,
-    /// `policy.flags.w` (F, H).
-    pub wf: usize,
-    /// `policy.l1.b` (H).
-    pub b1: usize,
-    /// `policy.l2.w` (H, H).
-    pub w2: usize,
-    /// `policy.l2.b` (H).
-    pub b2: usize,
-    /// `policy.pi.w` (H, |A|).
-    pub wp: usize,
-    /// `policy.pi.b` (|A|).
-    pub bp: usize,
-    /// `policy.v.w` (H, 1).
-    pub wv: usize,
-    /// `policy.v.b` (1).
-    pub bv: usize,
-    /// `policy.v_int.w` (H, 1), with the intrinsic value head (else `len`).
-    pub wvi: usize,
-    /// `policy.v_int.b` (1), with the intrinsic value head (else `len`).
-    pub bvi: usize,
-    /// Total.
-    pub len: usize,
-}
-
-impl Offsets {
-    /// Offsets for a shape.
-    pub fn new(s: NetShape) -> Offsets {
-        let h = s.hidden;
-        let embed = 0;
-        let wf = embed + s.cells * s.glyphs * h;
-        let b1 = wf + s.flags * h;
-        let w2 = b1 + h;
-        let b2 = w2 + h * h;
-        let wp = b2 + h;
-        let bp = wp + h * s.actions;
-        let wv = bp + s.actions;
-        let bv = wv + h;
-        let (wvi, bvi, len) = if s.int_value {
-            (bv + 1, bv + 1 + h, bv + 2 + h)
-        } else {
-            (bv + 1, bv + 1, bv + 1)
-        };
-        Offsets {
-            embed,
-            wf,
-            b1,
-            w2,
-            b2,
-            wp,
-            bp,
-            wv,
-            bv,
-            wvi,
-            bvi,
-            len,
-        }
-    }
-}
 
 /// Tensors concatenated into one flat f32 buffer.
 fn flat(ts: &[Tensor]) -> Result<Vec<f32>> {

@@ -12,7 +12,7 @@
 pub mod adam;
 /// Checkpoints: weights, optimiser state, counters, written atomically.
 pub mod checkpoint;
-/// The run configuration (`config.toml`).
+/// The run configuration (`config.toml`), now in `fulcrum_shared::config`.
 pub mod config;
 /// What a PPO step reports (losses, entropy, KL, clip fraction).
 pub mod diagnostics;

@@ -15,7 +15,9 @@ use crate::adam::Adam;
 use crate::diagnostics::Stats;
 use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
-use crate::net::{mask_bias, sample, Net, NetShape};
+use crate::net::{mask_bias, sample, Net};
+// The network's shape for a world, where the binary has always found it.
+pub use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::ppo_config::PpoConfig;
 
 /// What to train.
@@ -81,20 +83,6 @@ impl UpdateLog {
         } else {
             self.successes as f32 / self.episodes as f32
         }
-    }
-}
-
-/// The network's shape for a world (one value head; [`crate::config::RunConfig::shape`]
-/// adds the intrinsic one when the run has it).
-pub fn shape_for(world: &World, hidden: usize) -> NetShape {
-    let spec = world.obs_spec();
-    NetShape {
-        cells: spec.cells(),
-        glyphs: spec.glyphs,
-        flags: spec.flags,
-        hidden,
-        actions: world.num_actions(),
-        int_value: false,
     }
 }
 

@@ -67,3 +67,29 @@ impl Preset {
         (self == Preset::Rllib).then_some(512)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every preset survives config.toml's `[ppo]` table (RLlib's unclipped gradient
+    /// norm is `inf`), and RLlib's schedule and KL rule are as documented.
+    #[test]
+    fn presets_round_trip_through_the_ppo_table() {
+        #[derive(Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+        struct File {
+            ppo: PpoConfig,
+        }
+        for p in [Preset::Fulcrum, Preset::CleanRl, Preset::Rllib] {
+            let f = File { ppo: p.ppo() };
+            let back: File = toml::from_str(&toml::to_string(&f).unwrap()).unwrap();
+            assert_eq!(back, f);
+        }
+        // RLlib's rule: x1.5 above twice the target, x0.5 below half of it.
+        let r = Preset::Rllib.ppo();
+        assert_eq!(r.adapt_kl(0.2, 0.03), 0.3);
+        assert_eq!(r.adapt_kl(0.2, 0.004), 0.1);
+        assert_eq!(r.adapt_kl(0.2, 0.01), 0.2);
+        assert_eq!(r.lr_at(5, 10), 5e-5);
+    }
+}

@@ -33,11 +33,11 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::adam::Adam;
 use crate::checkpoint::{self, Extra};
-use crate::config::RunConfig;
 use crate::diagnostics::Stats;
 use crate::gae::{gae, Rollout};
 use crate::local::{update, UpdateData};
 use crate::net::Net;
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::ppo_config::PpoConfig;
 
 /// The columns of `metrics.csv`, in order.

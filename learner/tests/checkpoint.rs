@@ -11,7 +11,8 @@ use fulcrum_learner::adam::Adam;
 use fulcrum_learner::checkpoint::{
     load, rng_restore, rng_state, save, CheckpointError, Extra, RNG_STATE_LEN,
 };
-use fulcrum_learner::net::{Net, NetShape};
+use fulcrum_learner::net::Net;
+use fulcrum_shared::layout::NetShape;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

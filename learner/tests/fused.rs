@@ -4,11 +4,13 @@
 
 use candle_core::{Device, Tensor};
 use fulcrum_learner::adam::Adam;
-use fulcrum_learner::fused::{Data, Learner, Offsets};
-use fulcrum_learner::net::{logprob_entropy, mask_bias, Net, NetShape};
+use fulcrum_learner::fused::{Data, Learner};
+use fulcrum_learner::net::{logprob_entropy, mask_bias, Net};
 use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
 use fulcrum_learner::preset::Preset;
 use fulcrum_learner::simd::Simd;
+use fulcrum_shared::layout::NetShape;
+use fulcrum_shared::layout::Offsets;
 use fulcrum_shared::ppo_config::PpoConfig;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

@@ -27,9 +27,11 @@
 use candle_core::{Device, Tensor};
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::diagnostics::Stats;
-use fulcrum_learner::fused::{Data, Learner, Offsets};
-use fulcrum_learner::net::{logprob_entropy, mask_bias, Net, NetShape};
+use fulcrum_learner::fused::{Data, Learner};
+use fulcrum_learner::net::{logprob_entropy, mask_bias, Net};
 use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
+use fulcrum_shared::layout::NetShape;
+use fulcrum_shared::layout::Offsets;
 use fulcrum_shared::ppo_config::PpoConfig;
 
 /// Two tools: flags [held0, held1, normal, choosing-tool, dir0, dir1]; actions N, E, S, W,

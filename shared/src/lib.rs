@@ -10,6 +10,10 @@
 
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
+/// Checkpoint files: format, checks, atomic writes (weights, optimiser state, counters).
+pub mod checkpoint;
+/// A training run's configuration: what `config.toml` holds.
+pub mod config;
 /// The text form of states (`agent=X,Y holding=... mode=... obj=...`).
 pub mod describe;
 /// Episodes, task rewards and the learner's observation encoding.
@@ -22,6 +26,8 @@ pub mod generate;
 pub mod hash;
 /// Intrinsic reward forms (additive, potential-based shaping, count novelty).
 pub mod intrinsic;
+/// The network's weight layout, which the learner and the actors share.
+pub mod layout;
 /// Per-mode action masking from the observation's flags.
 pub mod mask;
 /// Shared-memory message layouts and service names.

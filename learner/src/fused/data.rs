@@ -4,7 +4,7 @@
 
 use candle_core::{bail, Result};
 
-use crate::net::NetShape;
+use fulcrum_shared::layout::NetShape;
 
 /// One rollout prepared for the update.
 #[derive(Debug)]

@@ -1,0 +1,386 @@
+//! A training run's resolved configuration: what `config.toml` in the run directory
+//! holds, and what the supervisor, the learner and every actor read.
+//!
+//! One update consumes `actors` chunks of `envs_per_actor x steps_per_chunk`
+//! transitions: the batch is `B = actors * envs_per_actor * steps_per_chunk` env steps,
+//! and the run makes `ceil(total_steps / B)` updates.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::checkpoint::Extra;
+use crate::intrinsic::Intrinsic;
+use crate::layout::{shape_for, NetShape};
+use crate::ppo_config::PpoConfig;
+use crate::world::World;
+
+/// The resolved configuration of a run.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RunConfig {
+    /// fulcrum's version that wrote the file.
+    pub fulcrum_version: String,
+    /// The run's id (its directory name by default).
+    pub run_id: String,
+    /// World as given: a built-in name or a path.
+    pub world: String,
+    /// The world's name.
+    pub world_name: String,
+    /// [`World::content_hash`], hex: a resumed run checks it.
+    pub world_hash: String,
+    /// Seed of weights, sampling, minibatches and worlds.
+    pub seed: u64,
+    /// Env steps in all (rounded up to whole updates).
+    pub total_steps: u64,
+    /// Actor processes.
+    pub actors: usize,
+    /// Worlds per actor (M).
+    pub envs_per_actor: usize,
+    /// Steps per chunk (T).
+    pub steps_per_chunk: usize,
+    /// Threads of the learner process.
+    pub learner_threads: usize,
+    /// Hidden units.
+    pub hidden: usize,
+    /// Intrinsic reward weight (0 with `empowerment = false`).
+    pub beta: f64,
+    /// Whether the run has an empowerment service (every intrinsic form but `none`).
+    pub empowerment: bool,
+    /// The intrinsic reward form ([`Intrinsic`]): `none`,
+    /// `additive`, `potential` or `count`.
+    #[serde(default = "default_intrinsic")]
+    pub intrinsic: String,
+    /// `switch` (the held / not-held horizons) or `fixed` (one horizon everywhere).
+    #[serde(default = "default_horizon_mode")]
+    pub horizon_mode: String,
+    /// Tool of the channel (`auto`, a kind, or `all`).
+    pub tool: String,
+    /// Objects of interest, comma separated (empty = the world's default).
+    pub objects: String,
+    /// Horizon where the tool is not held.
+    pub horizon_unequipped: u32,
+    /// Horizon where it is held.
+    pub horizon_equipped: u32,
+    /// 0 = synchronous PPO; N = chunks may be made by a policy up to N versions old.
+    pub max_policy_lag: u64,
+    /// Checkpoint every this many updates (and at the end).
+    pub checkpoint_every: u64,
+    /// Whether actors on other hosts may join (`train --listen`, feature `multihost`).
+    /// Then an update takes one chunk from every local actor and every live remote one,
+    /// and the run ends after `total_steps` env steps, whatever the batches were.
+    #[serde(default)]
+    pub remote: bool,
+    /// Seconds the learner waits for a remote actor's chunk before it goes on without
+    /// it (the actor rejoins with its next chunk).
+    #[serde(default = "default_stall_timeout")]
+    pub stall_timeout_s: f64,
+    /// Per-mode action masking ([`crate::mask`]) in the actors' sampling and the
+    /// learner's log-probabilities and entropy. A configuration written before masking
+    /// existed reads as `false`, the way those runs were trained.
+    #[serde(default)]
+    pub action_mask: bool,
+    /// Two value heads (RND's arrangement): the task reward and the intrinsic reward get
+    /// their own value estimates and GAE (the intrinsic one with `gamma_int`), the
+    /// intrinsic reward divided by the running standard deviation of the intrinsic
+    /// rewards so far; the policy's advantage is `A_ext + beta * A_int`.
+    #[serde(default)]
+    pub intrinsic_value_head: bool,
+    /// The intrinsic return's discount (two value heads only).
+    #[serde(default = "default_gamma_int")]
+    pub gamma_int: f32,
+    /// PPO hyperparameters (the `[ppo]` table).
+    pub ppo: PpoConfig,
+}
+
+fn default_intrinsic() -> String {
+    "additive".into()
+}
+
+fn default_gamma_int() -> f32 {
+    0.99
+}
+
+fn default_stall_timeout() -> f64 {
+    10.0
+}
+
+fn default_horizon_mode() -> String {
+    "switch".into()
+}
+
+impl RunConfig {
+    /// The network's shape for this run on `world`.
+    pub fn shape(&self, world: &World) -> NetShape {
+        NetShape {
+            int_value: self.intrinsic_value_head,
+            ..shape_for(world, self.hidden)
+        }
+    }
+
+    /// The intrinsic reward form (`none` without a service, whatever the field says).
+    pub fn form(&self) -> Intrinsic {
+        if !self.empowerment {
+            return Intrinsic::None;
+        }
+        self.intrinsic.parse().unwrap_or(Intrinsic::Additive)
+    }
+
+    /// Whether a checkpoint's metadata fits this configuration: the action space (masked
+    /// or not) is part of what the policy learnt, so a checkpoint is never continued
+    /// with the other setting. Checkpoints from before masking carry no mark.
+    pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), String> {
+        match extra.meta.get("action_mask") {
+            Some(m) if *m != self.action_mask.to_string() => Err(format!(
+                "the checkpoint was trained with action_mask = {m}, but config.toml says {}",
+                self.action_mask
+            )),
+            _ => Ok(()),
+        }
+    }
+
+    /// Env steps per update.
+    pub fn batch(&self) -> usize {
+        self.actors * self.envs_per_actor * self.steps_per_chunk
+    }
+
+    /// Updates in the run.
+    pub fn updates(&self) -> u64 {
+        self.total_steps.div_ceil(self.batch().max(1) as u64).max(1)
+    }
+
+    /// The first thing wrong with the configuration, as one sentence.
+    pub fn check(&self) -> Result<(), String> {
+        let b = self.batch();
+        let checks: [(bool, String); 13] = [
+            (
+                !(self.stall_timeout_s.is_finite() && self.stall_timeout_s > 0.0),
+                format!(
+                    "--stall-timeout {} must be a positive number of seconds",
+                    self.stall_timeout_s
+                ),
+            ),
+            (self.actors == 0, "--actors must be at least 1".into()),
+            (
+                self.actors > crate::traj::MAX_ACTORS,
+                format!(
+                    "--actors {} is over the limit of {}",
+                    self.actors,
+                    crate::traj::MAX_ACTORS
+                ),
+            ),
+            (
+                self.envs_per_actor == 0 || self.envs_per_actor > 4096,
+                format!("--envs-per-actor {} must be 1 to 4096", self.envs_per_actor),
+            ),
+            (
+                self.steps_per_chunk == 0 || self.steps_per_chunk > 4096,
+                format!(
+                    "--steps-per-chunk {} must be 1 to 4096",
+                    self.steps_per_chunk
+                ),
+            ),
+            (
+                self.learner_threads == 0,
+                "--learner-threads must be at least 1".into(),
+            ),
+            (
+                self.hidden == 0 || self.hidden > 4096,
+                format!("--hidden {} must be 1 to 4096", self.hidden),
+            ),
+            (
+                !self.beta.is_finite() || self.beta < 0.0,
+                format!("--beta {} must be a finite number >= 0", self.beta),
+            ),
+            (self.total_steps == 0, "--steps must be at least 1".into()),
+            (
+                self.ppo.minibatches == 0 || self.ppo.minibatches > b,
+                format!(
+                    "{} minibatches do not fit a batch of {b} steps",
+                    self.ppo.minibatches
+                ),
+            ),
+            (self.ppo.epochs == 0, "epochs must be at least 1".into()),
+            (
+                self.checkpoint_every == 0,
+                "--checkpoint-every must be at least 1".into(),
+            ),
+            (
+                !(self.ppo.lr.is_finite() && self.ppo.lr > 0.0),
+                format!("learning rate {} must be positive", self.ppo.lr),
+            ),
+        ];
+        for (bad, why) in checks {
+            if bad {
+                return Err(why);
+            }
+        }
+        let form: Intrinsic = self.intrinsic.parse()?;
+        if self.intrinsic_value_head && !form.uses_service() {
+            return Err(
+                "--intrinsic-value-head needs an intrinsic reward (not --no-empowerment)".into(),
+            );
+        }
+        if !(self.gamma_int > 0.0 && self.gamma_int <= 1.0) {
+            return Err(format!("--gamma-int {} must be in (0, 1]", self.gamma_int));
+        }
+        if form.uses_service() != self.empowerment {
+            return Err(format!(
+                "--intrinsic {form} {} an empowerment service",
+                if self.empowerment {
+                    "does not use"
+                } else {
+                    "needs"
+                }
+            ));
+        }
+        match self.horizon_mode.as_str() {
+            "switch" => {}
+            "fixed" if self.horizon_unequipped == self.horizon_equipped => {}
+            "fixed" => {
+                return Err(format!(
+                    "--horizon-mode fixed uses one horizon, but --horizon-unequipped {} and --horizon-equipped {} differ",
+                    self.horizon_unequipped, self.horizon_equipped
+                ))
+            }
+            other => {
+                return Err(format!(
+                    "unknown --horizon-mode '{other}' (modes: switch, fixed)"
+                ))
+            }
+        }
+        for (h, which) in [
+            (self.horizon_unequipped, "--horizon-unequipped"),
+            (self.horizon_equipped, "--horizon-equipped"),
+        ] {
+            if self.empowerment && (h == 0 || h > crate::parse::MAX_HORIZON) {
+                return Err(format!(
+                    "{which} {h} must be 1 to {}",
+                    crate::parse::MAX_HORIZON
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Read `config.toml`.
+    pub fn load(path: &Path) -> Result<RunConfig, String> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+        toml::from_str(&text).map_err(|e| {
+            format!(
+                "{} is not a valid run configuration: {}",
+                path.display(),
+                e.message()
+            )
+        })
+    }
+
+    /// As TOML text.
+    pub fn to_toml(&self) -> String {
+        toml::to_string(self).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cfg() -> RunConfig {
+        RunConfig {
+            fulcrum_version: "0".into(),
+            run_id: "r".into(),
+            world: "room".into(),
+            world_name: "room".into(),
+            world_hash: "0".into(),
+            seed: 1,
+            total_steps: 10_000,
+            actors: 2,
+            envs_per_actor: 4,
+            steps_per_chunk: 128,
+            learner_threads: 1,
+            hidden: 64,
+            beta: 0.0,
+            empowerment: false,
+            intrinsic: "none".into(),
+            horizon_mode: "switch".into(),
+            tool: "auto".into(),
+            objects: String::new(),
+            horizon_unequipped: 2,
+            horizon_equipped: 1,
+            max_policy_lag: 0,
+            remote: false,
+            stall_timeout_s: 10.0,
+            checkpoint_every: 10,
+            action_mask: true,
+            intrinsic_value_head: false,
+            gamma_int: 0.99,
+            ppo: PpoConfig::default(),
+        }
+    }
+
+    /// A configuration written before masking and the new PPO fields reads as those runs
+    /// were trained: unmasked, no advantage floor, annealed learning rate, no KL term.
+    #[test]
+    fn old_files_keep_their_meaning() {
+        let mut text = cfg().to_toml();
+        for key in [
+            "action_mask",
+            "adv_std_floor",
+            "lr_anneal",
+            "adv_norm_batch",
+            "vf_loss_clip",
+            "kl_coef",
+            "kl_target",
+        ] {
+            let start = text.find(&format!("{key} = ")).unwrap();
+            let end = start + text[start..].find('\n').unwrap() + 1;
+            text.replace_range(start..end, "");
+        }
+        let old: RunConfig = toml::from_str(&text).unwrap();
+        assert!(!old.action_mask);
+        assert_eq!(old.ppo.adv_std_floor, 0.0);
+        assert!(old.ppo.lr_anneal && !old.ppo.adv_norm_batch);
+        assert_eq!((old.ppo.vf_loss_clip, old.ppo.kl_coef), (0.0, 0.0));
+        assert_eq!(old.ppo.lr_at(5, 10), 2.5e-4 * 0.5);
+    }
+
+    #[test]
+    fn batch_and_updates() {
+        let c = cfg();
+        assert_eq!(c.batch(), 1024);
+        // ceil(10000 / 1024) = 10.
+        assert_eq!(c.updates(), 10);
+    }
+
+    #[test]
+    fn toml_round_trip_and_checks() {
+        let c = cfg();
+        let back: RunConfig = toml::from_str(&c.to_toml()).unwrap();
+        assert_eq!(back, c);
+        assert!(c.check().is_ok());
+        let mut bad = c.clone();
+        bad.beta = -1.0;
+        assert!(bad.check().unwrap_err().contains("--beta"));
+        let mut bad = c.clone();
+        bad.actors = 0;
+        assert!(bad.check().unwrap_err().contains("--actors"));
+        let mut bad = c.clone();
+        bad.empowerment = true;
+        bad.intrinsic = "potential".into();
+        bad.horizon_equipped = 0;
+        assert!(bad.check().unwrap_err().contains("--horizon-equipped"));
+        let mut bad = c.clone();
+        bad.intrinsic = "potential".into();
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .contains("needs an empowerment service"));
+        let mut bad = c.clone();
+        bad.intrinsic = "novelty".into();
+        assert!(bad.check().unwrap_err().contains("'novelty'"));
+        let mut bad = c;
+        bad.horizon_mode = "fixed".into();
+        assert!(bad.check().unwrap_err().contains("differ"));
+    }
+}
