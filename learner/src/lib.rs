@@ -10,25 +10,41 @@
 
 /// Adam with its state in the open, and its loop over flat buffers.
 pub mod adam;
-/// Checkpoints: weights, optimiser state, counters, written atomically.
+/// An update's batch: chunks turned into rewards, advantages and returns.
+mod batch;
+/// Checkpoints of the candle network and its optimiser.
 pub mod checkpoint;
 /// The run configuration (`config.toml`), now in `fulcrum_shared::config`.
 pub mod config;
+/// The counters a checkpoint of the learner carries.
+mod counters;
+/// The learner's CSV files: appended under a header, trimmed on resume.
+mod csv;
 /// What a PPO step reports (losses, entropy, KL, clip fraction).
 pub mod diagnostics;
+/// Why the learner process failed.
+pub mod error;
 /// The PPO update on flat buffers (hand-written forward and backward, fused Adam).
 pub mod fused;
 /// Generalised advantage estimation with termination and truncation.
 pub mod gae;
+/// `hosts.csv`: per update and host, the chunks used (runs with remote actors).
+pub mod hosts;
 /// Single-process training loop.
 pub mod local;
+/// `metrics.csv`: one row per update, written and read back.
+pub mod metrics;
 /// The actor-critic network.
 pub mod net;
+/// The files of a run directory.
+pub mod paths;
 /// The PPO loss and gradient clipping on candle tensors.
 pub mod ppo;
 /// Named sets of PPO settings (fulcrum, CleanRL, RLlib).
 pub mod preset;
-/// The learner process of `fulcrum train`.
+/// The learner process of `fulcrum train`: gather, update, publish, record, checkpoint.
+pub mod process;
+/// The learner process and its files at their old paths (`run::run_learner`, ...).
 pub mod run;
 /// The compiled variants of the inner loops (baseline, AVX2, AVX-512).
 pub mod simd;
