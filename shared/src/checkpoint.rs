@@ -49,7 +49,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 
-use safetensors::tensor::{Dtype, View};
+use safetensors::tensor::{Dtype, TensorView, View};
 use safetensors::SafeTensors;
 
 /// The format version this build writes and reads.
@@ -497,10 +497,6 @@ pub fn read(path: &Path, params: &[(&str, Vec<usize>)]) -> Result<Contents, Chec
         path: path.to_path_buf(),
         detail,
     };
-    let invalid = |detail: String| CheckpointError::Invalid {
-        path: path.to_path_buf(),
-        detail,
-    };
     let st = SafeTensors::deserialize(&bytes).map_err(|e| {
         corrupt(format!(
             "the file ({} bytes) is not a readable safetensors file ({e})",
@@ -517,31 +513,8 @@ pub fn read(path: &Path, params: &[(&str, Vec<usize>)]) -> Result<Contents, Chec
         .collect();
 
     // Version, then checksum: everything after this reads trustworthy bytes.
-    match meta.get(VERSION_KEY) {
-        Some(v) if *v == FORMAT_VERSION.to_string() => {}
-        found => {
-            return Err(CheckpointError::Version {
-                path: path.to_path_buf(),
-                found: found.map_or_else(|| "none".to_string(), |v| v.to_string()),
-            })
-        }
-    }
     let views = st.tensors();
-    let want = checksum(
-        &meta,
-        views
-            .iter()
-            .map(|(name, v)| (name.as_str(), v.dtype(), v.shape(), v.data())),
-    );
-    match meta.get(CHECKSUM_KEY) {
-        Some(sum) if *sum == want => {}
-        Some(sum) => {
-            return Err(corrupt(format!(
-                "its checksum is {sum}, but its contents hash to {want}"
-            )))
-        }
-        None => return Err(invalid(format!("it has no {CHECKSUM_KEY} entry"))),
-    }
+    check_version_and_sum(path, &meta, &views)?;
 
     // Tensors: every parameter and moment, nothing unknown.
     let n = params.len();
@@ -566,6 +539,86 @@ pub fn read(path: &Path, params: &[(&str, Vec<usize>)]) -> Result<Contents, Chec
         )?);
     }
     let mut extra = Extra::default();
+    read_other_tensors(path, &st, &views, params, &mut extra)?;
+    let step = read_header(path, &meta, &mut extra)?;
+
+    let params = params
+        .iter()
+        .zip(weights.into_iter().zip(ms.into_iter().zip(vs)))
+        .map(|((name, dims), (weights, (m, v)))| ParamState {
+            name: name.to_string(),
+            dims: dims.clone(),
+            weights,
+            m,
+            v,
+        })
+        .collect();
+    Ok(Contents {
+        params,
+        step,
+        extra,
+    })
+}
+
+/// The file's format version, then its checksum over `meta` and `views`.
+fn check_version_and_sum(
+    path: &Path,
+    meta: &BTreeMap<&str, &str>,
+    views: &[(String, TensorView<'_>)],
+) -> Result<(), CheckpointError> {
+    let corrupt = |detail: String| CheckpointError::Corrupt {
+        path: path.to_path_buf(),
+        detail,
+    };
+    let invalid = |detail: String| CheckpointError::Invalid {
+        path: path.to_path_buf(),
+        detail,
+    };
+    match meta.get(VERSION_KEY) {
+        Some(v) if *v == FORMAT_VERSION.to_string() => {}
+        found => {
+            return Err(CheckpointError::Version {
+                path: path.to_path_buf(),
+                found: found.map_or_else(|| "none".to_string(), |v| v.to_string()),
+            })
+        }
+    }
+    let want = checksum(
+        meta,
+        views
+            .iter()
+            .map(|(name, v)| (name.as_str(), v.dtype(), v.shape(), v.data())),
+    );
+    match meta.get(CHECKSUM_KEY) {
+        Some(sum) if *sum == want => {}
+        Some(sum) => {
+            return Err(corrupt(format!(
+                "its checksum is {sum}, but its contents hash to {want}"
+            )))
+        }
+        None => return Err(invalid(format!("it has no {CHECKSUM_KEY} entry"))),
+    }
+
+    Ok(())
+}
+
+/// The tensors besides the parameters' and moments': no parameter or moment the
+/// network lacks, the blobs into `extra`, nothing unknown.
+fn read_other_tensors(
+    path: &Path,
+    st: &SafeTensors<'_>,
+    views: &[(String, TensorView<'_>)],
+    params: &[(&str, Vec<usize>)],
+    extra: &mut Extra,
+) -> Result<(), CheckpointError> {
+    let corrupt = |detail: String| CheckpointError::Corrupt {
+        path: path.to_path_buf(),
+        detail,
+    };
+    let invalid = |detail: String| CheckpointError::Invalid {
+        path: path.to_path_buf(),
+        detail,
+    };
     let known = |n: &str| params.iter().any(|(p, _)| *p == n);
     let mut names: Vec<&str> = views.iter().map(|(n, _)| n.as_str()).collect();
     names.sort_unstable();
@@ -603,9 +656,22 @@ pub fn read(path: &Path, params: &[(&str, Vec<usize>)]) -> Result<Contents, Chec
         }
     }
 
-    // Metadata: step, counters, floats, text; nothing unknown.
+    Ok(())
+}
+
+/// The header's step, counters, floats and text (into `extra`); nothing unknown.
+/// Returns the step.
+fn read_header(
+    path: &Path,
+    meta: &BTreeMap<&str, &str>,
+    extra: &mut Extra,
+) -> Result<u64, CheckpointError> {
+    let invalid = |detail: String| CheckpointError::Invalid {
+        path: path.to_path_buf(),
+        detail,
+    };
     let mut step = None;
-    for (&key, &value) in &meta {
+    for (&key, &value) in meta {
         if key == VERSION_KEY || key == CHECKSUM_KEY {
         } else if key == STEP_KEY {
             step = Some(value.parse::<u64>().map_err(|_| {
@@ -627,22 +693,5 @@ pub fn read(path: &Path, params: &[(&str, Vec<usize>)]) -> Result<Contents, Chec
             return Err(invalid(format!("it has an unknown header entry {key:?}")));
         }
     }
-    let step = step.ok_or_else(|| invalid(format!("it has no {STEP_KEY} entry")))?;
-
-    let params = params
-        .iter()
-        .zip(weights.into_iter().zip(ms.into_iter().zip(vs)))
-        .map(|((name, dims), (weights, (m, v)))| ParamState {
-            name: name.to_string(),
-            dims: dims.clone(),
-            weights,
-            m,
-            v,
-        })
-        .collect();
-    Ok(Contents {
-        params,
-        step,
-        extra,
-    })
+    step.ok_or_else(|| invalid(format!("it has no {STEP_KEY} entry")))
 }
