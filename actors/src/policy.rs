@@ -1,7 +1,8 @@
 //! The actor's policy: the learner's network evaluated on plain f32 buffers.
 //!
 //! Same math as `fulcrum_learner::net::Net::forward` (see its docs), one sample at a
-//! time, from the flat weights the learner publishes (the layout of [`fulcrum_shared::layout`]):
+//! time, from the flat weights the learner publishes (the layout of
+//! [`fulcrum_shared::layout`]):
 //!
 //! ```text
 //! z1     = b1 + sum_c E[c * G + glyph_c] + flags @ Wf      (H)

@@ -6,6 +6,10 @@
 //! The arithmetic is candle's `affine` ops in the same order (bit for bit), except that
 //! subnormal moments are flushed to 0 (which leaves the weights as they are; see
 //! `flush`). The loop is compiled for each [`Simd`] variant, all giving the same bits.
+//!
+//! [`Adam::apply`]: crate::adam::Adam::apply
+//! [`adam_slices`]: crate::adam::adam_slices
+//! [`Simd`]: crate::simd::Simd
 
 use std::ops::Range;
 

@@ -2,6 +2,13 @@
 //! weights and Adam's state of a [`Net`] and an [`Adam`] to and from a checkpoint file
 //! (the format, its checks and its atomic writes: [`fulcrum_shared::checkpoint`]), and
 //! [`rng_state`] and [`rng_restore`] turn the learner's generator into a blob and back.
+//!
+//! [`save`]: crate::checkpoint::save
+//! [`load`]: crate::checkpoint::load
+//! [`Net`]: crate::net::Net
+//! [`Adam`]: crate::adam::Adam
+//! [`rng_state`]: crate::checkpoint::rng_state
+//! [`rng_restore`]: crate::checkpoint::rng_restore
 
 use std::path::Path;
 

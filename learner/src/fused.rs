@@ -29,16 +29,19 @@
 //!   with nonzero moments).
 //!
 //! Gradients follow candle's autograd rules where they are not smooth, so the two paths
-//! agree to rounding (tested in `tests/fused.rs`): `maximum`/`minimum` split the gradient in half on a
-//! tie (the clipped surrogate inside the clip range is such a tie), `clamp` is
-//! `maximum(lo).minimum(hi)`, and ReLU passes the gradient at 0. Adam's arithmetic is
+//! agree to rounding (tested in `tests/fused.rs`): `maximum`/`minimum` split the gradient
+//! in half on a tie (the clipped surrogate inside the clip range is such a tie), `clamp`
+//! is `maximum(lo).minimum(hi)`, and ReLU passes the gradient at 0. Adam's arithmetic is
 //! candle's `affine` ops in the same order (bit for bit), except that subnormal moments
 //! are flushed to 0 (which leaves the weights as they are; see [`crate::adam`]).
 //!
 //! The inner loops (`kernel`) are plain Rust over fixed-width chunks (accumulators in
-//! registers), compiled three times ([`Simd`]): for the baseline target and for AVX2 and AVX-512, chosen at
-//! run time. Without FMA contraction and with fixed summation orders, all three give the
-//! same bits.
+//! registers), compiled three times ([`Simd`]): for the baseline target and for AVX2 and
+//! AVX-512, chosen at run time. Without FMA contraction and with fixed summation orders,
+//! all three give the same bits.
+//!
+//! [`Adam::apply`]: crate::adam::Adam::apply
+//! [`Simd`]: crate::simd::Simd
 
 use std::ops::Range;
 

@@ -4,9 +4,11 @@
 //! presets), over the actions each mode allows (`fulcrum_shared::mask`), on an
 //! actor-critic network whose first layer sums one embedding row per (cell, glyph), with
 //! an optional second value head for the intrinsic return ([`net`]), with GAE that tells
-//! truncation from termination ([`gae`]). [`local`] trains in one process (the reference
-//! loop that the multi-process training of `fulcrum train` distributes); [`stats`] is
-//! what `fulcrum experiment` reports.
+//! truncation from termination ([`mod@gae`]). [`local`] trains in one process (the
+//! reference loop that the multi-process training of `fulcrum train` distributes),
+//! [`process`] is the learner process of that training; [`stats`] is what `fulcrum
+//! experiment` reports. What the learner shares with the actors (the weight layout, the
+//! run configuration, the checkpoint format) is in `fulcrum_shared`.
 
 /// Adam with its state in the open, and its loop over flat buffers.
 pub mod adam;
@@ -48,9 +50,7 @@ pub mod process;
 pub mod run;
 /// The compiled variants of the inner loops (baseline, AVX2, AVX-512).
 pub mod simd;
-/// Aggregating the learning curves of several runs (means, bands, Welch's t-test) and
-/// comparing times to solve (IQM, bootstrap intervals, Fisher's exact, log-rank,
-/// Kaplan-Meier).
+// Aggregated learning curves, times to solve (a plain comment keeps its links in scope).
 pub mod stats;
 
 pub use gae::{gae, Rollout};

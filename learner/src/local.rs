@@ -4,6 +4,8 @@
 //!
 //! This is the reference loop: the multi-process training distributes exactly these
 //! steps (actors collect, the learner runs [`update`]).
+//!
+//! [`update`]: crate::local::update
 
 use candle_core::{Device, Result};
 use fulcrum_shared::{Episode, World};

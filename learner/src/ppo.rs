@@ -22,6 +22,10 @@
 //! minimised by Adam (our own, so that its moments and step are checkpointed) after
 //! clipping the global gradient norm; the learning rate is annealed linearly to 0 over
 //! the run.
+//!
+//! [`PpoConfig::adv_std_floor`]: fulcrum_shared::ppo_config::PpoConfig::adv_std_floor
+//! [`Preset::Rllib`]: crate::preset::Preset::Rllib
+//! [`PpoConfig::adapt_kl`]: fulcrum_shared::ppo_config::PpoConfig::adapt_kl
 
 use candle_core::{Result, Tensor};
 

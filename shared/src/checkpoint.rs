@@ -43,6 +43,13 @@
 //!   weights and moments, parsable counters) before it returns anything: a bad file
 //!   never half-loads.
 //! * Every error is one sentence naming the file and what is wrong.
+//!
+//! [`Extra::blobs`]: crate::checkpoint::Extra::blobs
+//! [`Extra::counters`]: crate::checkpoint::Extra::counters
+//! [`Extra::floats`]: crate::checkpoint::Extra::floats
+//! [`Extra::meta`]: crate::checkpoint::Extra::meta
+//! [`write`]: fn@crate::checkpoint::write
+//! [`read`]: crate::checkpoint::read
 
 use std::collections::{BTreeMap, HashMap};
 use std::fs::{self, File, OpenOptions};
@@ -275,7 +282,7 @@ fn non_finite(data: &[f32]) -> Option<String> {
     })
 }
 
-/// The refusal [`write`] makes: an error naming parameter `name` if `weights` holds a
+/// The refusal [`write()`] makes: an error naming parameter `name` if `weights` holds a
 /// NaN or an infinite value (a checkpoint that [`read`] would refuse must never replace
 /// a good one).
 pub fn check_finite(path: &Path, name: &str, weights: &[f32]) -> Result<(), CheckpointError> {
@@ -483,7 +490,7 @@ fn read_f32(
     Ok(data)
 }
 
-/// Reads a checkpoint written by [`write`] for a network whose parameters are `params`
+/// Reads a checkpoint written by [`write()`] for a network whose parameters are `params`
 /// (names and dimensions, in order: [`crate::layout::NetShape::params`]).
 ///
 /// The file is validated completely (see the module docs); the parameters come back in

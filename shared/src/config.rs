@@ -156,7 +156,7 @@ impl RunConfig {
             (
                 !(self.stall_timeout_s.is_finite() && self.stall_timeout_s > 0.0),
                 format!(
-                    "--stall-timeout {} must be a positive number of seconds",
+                    "the stall timeout {} must be a positive number of seconds",
                     self.stall_timeout_s
                 ),
             ),
@@ -164,35 +164,41 @@ impl RunConfig {
             (
                 self.actors > crate::traj::MAX_ACTORS,
                 format!(
-                    "--actors {} is over the limit of {}",
+                    "{} actors are over the limit of {}",
                     self.actors,
                     crate::traj::MAX_ACTORS
                 ),
             ),
             (
                 self.envs_per_actor == 0 || self.envs_per_actor > 4096,
-                format!("--envs-per-actor {} must be 1 to 4096", self.envs_per_actor),
+                format!(
+                    "{} worlds per actor: must be 1 to 4096",
+                    self.envs_per_actor
+                ),
             ),
             (
                 self.steps_per_chunk == 0 || self.steps_per_chunk > 4096,
                 format!(
-                    "--steps-per-chunk {} must be 1 to 4096",
+                    "{} steps per chunk: must be 1 to 4096",
                     self.steps_per_chunk
                 ),
             ),
             (
                 self.learner_threads == 0,
-                "--learner-threads must be at least 1".into(),
+                "the learner's threads must be at least 1".into(),
             ),
             (
                 self.hidden == 0 || self.hidden > 4096,
-                format!("--hidden {} must be 1 to 4096", self.hidden),
+                format!("{} hidden units: must be 1 to 4096", self.hidden),
             ),
             (
                 !self.beta.is_finite() || self.beta < 0.0,
                 format!("--beta {} must be a finite number >= 0", self.beta),
             ),
-            (self.total_steps == 0, "--steps must be at least 1".into()),
+            (
+                self.total_steps == 0,
+                "the run's env steps must be at least 1".into(),
+            ),
             (
                 self.ppo.minibatches == 0 || self.ppo.minibatches > b,
                 format!(
@@ -203,7 +209,7 @@ impl RunConfig {
             (self.ppo.epochs == 0, "epochs must be at least 1".into()),
             (
                 self.checkpoint_every == 0,
-                "--checkpoint-every must be at least 1".into(),
+                "the checkpoint interval must be at least 1 update".into(),
             ),
             (
                 !(self.ppo.lr.is_finite() && self.ppo.lr > 0.0),
@@ -226,7 +232,7 @@ impl RunConfig {
         }
         if form.uses_service() != self.empowerment {
             return Err(format!(
-                "--intrinsic {form} {} an empowerment service",
+                "the intrinsic reward '{form}' {} an empowerment service",
                 if self.empowerment {
                     "does not use"
                 } else {
@@ -239,13 +245,13 @@ impl RunConfig {
             "fixed" if self.horizon_unequipped == self.horizon_equipped => {}
             "fixed" => {
                 return Err(format!(
-                    "--horizon-mode fixed uses one horizon, but --horizon-unequipped {} and --horizon-equipped {} differ",
+                    "horizon mode 'fixed' uses one horizon, but the horizons without and with the tool ({} and {}) differ",
                     self.horizon_unequipped, self.horizon_equipped
                 ))
             }
             other => {
                 return Err(format!(
-                    "unknown --horizon-mode '{other}' (modes: switch, fixed)"
+                    "unknown horizon mode '{other}' (modes: switch, fixed)"
                 ))
             }
         }

@@ -48,12 +48,15 @@ pub fn generate(p: &GenParams) -> Result<String, GenError> {
     }
     if p.tools > MAX_TOOLS || p.objects > MAX_OBJECTS {
         return Err(GenError(format!(
-            "--tools {} --objects {}: at most {MAX_TOOLS} tools and {MAX_OBJECTS} objects",
+            "{} tools and {} objects: a world has at most {MAX_TOOLS} tools and {MAX_OBJECTS} objects",
             p.tools, p.objects
         )));
     }
     if !(0.0..0.5).contains(&p.rock) {
-        return Err(GenError(format!("--rock {} must be in [0, 0.5)", p.rock)));
+        return Err(GenError(format!(
+            "the rock fraction {} must be in [0, 0.5)",
+            p.rock
+        )));
     }
     let inner = (p.width - 2) * (p.height - 2);
     let needed = 1 + p.tools + p.objects;

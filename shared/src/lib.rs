@@ -1,5 +1,7 @@
 //! fulcrum-shared: the tool world of `docs/world.md`, which actors step and the empowerment
-//! engine plans over.
+//! engine plans over, and the contracts between the processes of `fulcrum train`
+//! (shared-memory messages, the network's weight layout, the run's configuration,
+//! checkpoint files).
 //!
 //! ```
 //! use fulcrum_shared::{load_world, EAST};

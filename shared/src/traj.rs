@@ -35,6 +35,11 @@
 //!
 //! Each data service has an event service beside it (`.../wake`): senders notify after
 //! sending so that receivers can block on a listener instead of polling.
+//!
+//! [`ChunkHeader`]: crate::traj::ChunkHeader
+//! [`ChunkLayout`]: crate::traj::ChunkLayout
+//! [`ChunkLayout::validate`]: crate::traj::ChunkLayout::validate
+//! [`WeightsHeader`]: crate::traj::WeightsHeader
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
