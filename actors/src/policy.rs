@@ -1,7 +1,8 @@
 //! The actor's policy: the learner's network evaluated on plain f32 buffers.
 //!
 //! Same math as `fulcrum_learner::net::Net::forward` (see its docs), one sample at a
-//! time, from the flat weights the learner publishes (parameter order of `Net::params`):
+//! time, from the flat weights the learner publishes (the layout of
+//! [`fulcrum_shared::layout`]):
 //!
 //! ```text
 //! z1     = b1 + sum_c E[c * G + glyph_c] + flags @ Wf      (H)
@@ -14,8 +15,7 @@
 //! allocation: on the paper's worlds a few microseconds per world, against tens of
 //! microseconds per candle op of the batched tensor path (measured in `fulcrum bench`).
 
-use fulcrum_learner::fused::Offsets;
-use fulcrum_learner::net::NetShape;
+use fulcrum_shared::layout::{NetShape, Offsets};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 

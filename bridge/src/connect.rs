@@ -9,9 +9,9 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use fulcrum_empowerment::service;
-use fulcrum_learner::config::RunConfig;
 use fulcrum_run::bad;
 use fulcrum_run::process::STOP;
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::msg;
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
 use fulcrum_shared::World;

@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use fulcrum_empowerment::service::Client;
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::run::RunPaths;
+use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::process::STOP;
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
 use fulcrum_shared::World;

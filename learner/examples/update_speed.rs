@@ -21,10 +21,14 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use std::time::Instant;
 
 use candle_core::{Device, Result, Tensor};
-use fulcrum_learner::local::{shape_for, update, UpdateData};
+use fulcrum_learner::adam::Adam;
+use fulcrum_learner::diagnostics::Stats;
+use fulcrum_learner::local::{update, UpdateData};
 use fulcrum_learner::net::Net;
-use fulcrum_learner::ppo::{clipped_grads, loss, Adam, Minibatch, PpoConfig, Stats};
+use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
+use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::load_world;
+use fulcrum_shared::ppo_config::PpoConfig;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

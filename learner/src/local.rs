@@ -4,17 +4,23 @@
 //!
 //! This is the reference loop: the multi-process training distributes exactly these
 //! steps (actors collect, the learner runs [`update`]).
+//!
+//! [`update`]: crate::local::update
 
 use candle_core::{Device, Result};
+use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::{Episode, World};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
+use crate::adam::Adam;
+use crate::diagnostics::Stats;
 use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
-use crate::net::{mask_bias, sample, Net, NetShape};
-use crate::ppo::{Adam, PpoConfig, Stats};
+use crate::net::{mask_bias, sample, Net};
+// The network's shape for a world, where the binary has always found it.
+use fulcrum_shared::ppo_config::PpoConfig;
 
 /// What to train.
 #[derive(Debug, Clone, Copy)]
@@ -79,20 +85,6 @@ impl UpdateLog {
         } else {
             self.successes as f32 / self.episodes as f32
         }
-    }
-}
-
-/// The network's shape for a world (one value head; [`crate::config::RunConfig::shape`]
-/// adds the intrinsic one when the run has it).
-pub fn shape_for(world: &World, hidden: usize) -> NetShape {
-    let spec = world.obs_spec();
-    NetShape {
-        cells: spec.cells(),
-        glyphs: spec.glyphs,
-        flags: spec.flags,
-        hidden,
-        actions: world.num_actions(),
-        int_value: false,
     }
 }
 

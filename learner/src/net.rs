@@ -18,33 +18,9 @@
 //! (candle's CPU generator cannot be seeded).
 
 use candle_core::{DType, Device, Result, Storage, Tensor, Var, D};
+use fulcrum_shared::layout::NetShape;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-
-/// Sizes of the network.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct NetShape {
-    /// Cells of the grid (W * H).
-    pub cells: usize,
-    /// Glyph ids.
-    pub glyphs: usize,
-    /// Flag vector length.
-    pub flags: usize,
-    /// Hidden units.
-    pub hidden: usize,
-    /// Actions.
-    pub actions: usize,
-    /// A second value head for the intrinsic return (`train --intrinsic-value-head`):
-    /// `value_int = h2 @ Wvi + bvi`, parameters `policy.v_int.w` (H, 1), `policy.v_int.b`.
-    pub int_value: bool,
-}
-
-impl NetShape {
-    /// Value heads: 1, or 2 with the intrinsic one.
-    pub fn heads(&self) -> usize {
-        1 + self.int_value as usize
-    }
-}
 
 /// The network's parameters, in a fixed order.
 #[derive(Debug)]
@@ -333,4 +309,32 @@ pub fn sample(logits: &Tensor, rng: &mut ChaCha8Rng) -> Result<(Vec<u32>, Vec<f3
         lps.push(row[pick]);
     }
     Ok((acts, lps))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The network's parameters are the shared layout's, name for name and dimension
+    /// for dimension (what actors and checkpoints rely on).
+    #[test]
+    fn parameters_follow_the_shared_layout() {
+        for int_value in [false, true] {
+            let shape = NetShape {
+                cells: 12,
+                glyphs: 11,
+                flags: 6,
+                hidden: 16,
+                actions: 7,
+                int_value,
+            };
+            let net = Net::new(shape, 1, &Device::Cpu).unwrap();
+            let got: Vec<(&str, Vec<usize>)> = net
+                .params
+                .iter()
+                .map(|(n, v)| (n.as_str(), v.as_tensor().dims().to_vec()))
+                .collect();
+            assert_eq!(got, shape.params());
+        }
+    }
 }

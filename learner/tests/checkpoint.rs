@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use candle_core::{Device, Tensor};
+use fulcrum_learner::adam::Adam;
 use fulcrum_learner::checkpoint::{
     load, rng_restore, rng_state, save, CheckpointError, Extra, RNG_STATE_LEN,
 };
-use fulcrum_learner::net::{Net, NetShape};
-use fulcrum_learner::ppo::Adam;
+use fulcrum_learner::net::Net;
+use fulcrum_shared::layout::NetShape;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -10,7 +10,7 @@
 //! values are made from them), after a check that fulcrum's forward pass gives the same.
 //!
 //! Checked for the fused learner (`fused::Learner`, what training runs) and the candle
-//! path (`ppo::loss`, `ppo::clipped_grads`, `ppo::Adam::apply`), each with and without
+//! path (`ppo::loss`, `ppo::clipped_grads`, `adam::Adam::apply`), each with and without
 //! the action mask: the loss terms, the gradient's norm, every gradient entry after
 //! global-norm clipping and every weight after the Adam step, at max_grad_norm 0.5 (the
 //! default; this batch's norm is about 0.3, so no clipping) and at 0.2 (clipping scales
@@ -25,9 +25,14 @@
 //! them by 1e-5 or more.
 
 use candle_core::{Device, Tensor};
-use fulcrum_learner::fused::{Data, Learner, Offsets};
-use fulcrum_learner::net::{logprob_entropy, mask_bias, Net, NetShape};
-use fulcrum_learner::ppo::{clipped_grads, loss, Adam, Minibatch, PpoConfig, Stats};
+use fulcrum_learner::adam::Adam;
+use fulcrum_learner::diagnostics::Stats;
+use fulcrum_learner::fused::{Data, Learner};
+use fulcrum_learner::net::{logprob_entropy, mask_bias, Net};
+use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
+use fulcrum_shared::layout::NetShape;
+use fulcrum_shared::layout::Offsets;
+use fulcrum_shared::ppo_config::PpoConfig;
 
 /// Two tools: flags [held0, held1, normal, choosing-tool, dir0, dir1]; actions N, E, S, W,
 /// apply, select0, select1.

@@ -7,8 +7,9 @@ use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::run::{run_learner, LearnerExit, RunPaths};
+use fulcrum_learner::paths::RunPaths;
+use fulcrum_learner::process::{run_learner, LearnerExit};
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
 
 use crate::error::{bad, BadRequest};

@@ -2,7 +2,8 @@
 
 use std::path::PathBuf;
 
-use fulcrum_learner::run::{read_metrics, RunPaths};
+use fulcrum_learner::metrics::read_metrics;
+use fulcrum_learner::paths::RunPaths;
 use fulcrum_shared::World;
 
 /// Draw `plots/learning-curve.png` from metrics.csv (None when there is nothing).

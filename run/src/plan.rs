@@ -10,10 +10,11 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::ppo::{PpoConfig, Preset};
-use fulcrum_learner::run::RunPaths;
+use fulcrum_learner::paths::RunPaths;
+use fulcrum_learner::preset::Preset;
+use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::intrinsic::Intrinsic;
+use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
 
 use crate::error::{bad, BadRequest};
@@ -181,7 +182,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         if ckpt.exists() {
             let net =
                 fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
-            let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+            let mut adam = fulcrum_learner::adam::Adam::new(&net)?;
             const CANNOT: &str =
                 "the run cannot continue from it (start a new run, or restore the file)";
             let extra = match fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {

@@ -68,8 +68,8 @@ pub struct Point {
     pub ret: f64,
 }
 
-impl From<&fulcrum_learner::run::MetricsRow> for Point {
-    fn from(r: &fulcrum_learner::run::MetricsRow) -> Point {
+impl From<&fulcrum_learner::metrics::MetricsRow> for Point {
+    fn from(r: &fulcrum_learner::metrics::MetricsRow) -> Point {
         Point {
             steps: r.env_steps as f64,
             episodes: r.episodes as f64,

@@ -25,8 +25,8 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{never, select, Receiver, Sender};
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::run::RunPaths;
+use fulcrum_learner::paths::RunPaths;
+use fulcrum_shared::config::RunConfig;
 
 use crate::error::bad;
 use crate::process::{

@@ -7,8 +7,8 @@
 //! - `flags: [u8; 2n + 2]`: held tool k at `k`, then mode one-hot: normal at `n`,
 //!   choosing-tool at `n + 1`, choosing-direction(k) at `n + 2 + k`.
 
-use crate::state::{State, BOULDER_DESTROYED};
-use crate::world::{ObjectKind, Task, Terrain, World, DESTROYED, INTACT, MAX_OBJECTS, OPEN};
+use crate::state::{State, BOULDER_DESTROYED, MAX_OBJECTS};
+use crate::world::{ObjectKind, Task, Terrain, World, DESTROYED, INTACT, OPEN};
 
 /// Glyph id of rock.
 pub const G_ROCK: u8 = 0;

@@ -6,6 +6,8 @@
 //! `/dev/stdout`, a FIFO) is written in place instead: renaming over it would replace a
 //! device node with a regular file, which on a shared machine breaks every later
 //! process that reads `/dev/null` (cargo's own `rustc -` probe among them).
+//!
+//! [`write_atomic`]: crate::fsio::write_atomic
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};

@@ -10,7 +10,8 @@ use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::world::{MAX_OBJECTS, MAX_SIDE, MAX_TOOLS};
+use crate::state::{MAX_OBJECTS, MAX_TOOLS};
+use crate::world::MAX_SIDE;
 
 /// Tool kinds in the order generated worlds use them.
 pub const TOOL_KINDS: [&str; 6] = ["axe", "pickaxe", "key", "wand", "tin_opener", "katana"];
@@ -41,18 +42,21 @@ pub struct GenError(pub String);
 pub fn generate(p: &GenParams) -> Result<String, GenError> {
     if !(3..=MAX_SIDE).contains(&p.width) || !(3..=MAX_SIDE).contains(&p.height) {
         return Err(GenError(format!(
-            "--width {} --height {}: both must be between 3 and {MAX_SIDE} (the border is rock)",
+            "a world {} wide and {} high: both sides must be between 3 and {MAX_SIDE} (the border is rock)",
             p.width, p.height
         )));
     }
     if p.tools > MAX_TOOLS || p.objects > MAX_OBJECTS {
         return Err(GenError(format!(
-            "--tools {} --objects {}: at most {MAX_TOOLS} tools and {MAX_OBJECTS} objects",
+            "{} tools and {} objects: a world has at most {MAX_TOOLS} tools and {MAX_OBJECTS} objects",
             p.tools, p.objects
         )));
     }
     if !(0.0..0.5).contains(&p.rock) {
-        return Err(GenError(format!("--rock {} must be in [0, 0.5)", p.rock)));
+        return Err(GenError(format!(
+            "the rock fraction {} must be in [0, 0.5)",
+            p.rock
+        )));
     }
     let inner = (p.width - 2) * (p.height - 2);
     let needed = 1 + p.tools + p.objects;

@@ -1,5 +1,7 @@
 //! fulcrum-shared: the tool world of `docs/world.md`, which actors step and the empowerment
-//! engine plans over.
+//! engine plans over, and the contracts between the processes of `fulcrum train`
+//! (shared-memory messages, the network's weight layout, the run's configuration,
+//! checkpoint files).
 //!
 //! ```
 //! use fulcrum_shared::{load_world, EAST};
@@ -10,6 +12,12 @@
 
 /// The built-in worlds (the paper's four, and a small room).
 pub mod builtin;
+/// Checkpoint files: format, checks, atomic writes (weights, optimiser state, counters).
+pub mod checkpoint;
+/// A training run's configuration: what `config.toml` holds.
+pub mod config;
+/// The text form of states (`agent=X,Y holding=... mode=... obj=...`).
+pub mod describe;
 /// Episodes, task rewards and the learner's observation encoding.
 pub mod env;
 /// Atomic file writes that leave device nodes and FIFOs alone.
@@ -20,22 +28,27 @@ pub mod generate;
 pub mod hash;
 /// Intrinsic reward forms (additive, potential-based shaping, count novelty).
 pub mod intrinsic;
+/// The network's weight layout, which the learner and the actors share.
+pub mod layout;
 /// Per-mode action masking from the observation's flags.
 pub mod mask;
 /// Shared-memory message layouts and service names.
 pub mod msg;
 /// World files: parsing and validation with file:line:col errors.
 pub mod parse;
-/// The packed state and its text form.
+/// PPO's hyperparameters: the `[ppo]` table of a run's `config.toml`.
+pub mod ppo_config;
+/// The packed state.
 pub mod state;
 /// Trajectory chunks and policy weights in shared memory.
 pub mod traj;
 /// The world, the rule table and the exact dynamics.
 pub mod world;
 
+pub use describe::DescribeError;
 pub use env::{Episode, ObsSpec, Outcome};
 pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
-pub use state::{DescribeError, Mode, State, BOULDER_DESTROYED};
+pub use state::{Mode, State, BOULDER_DESTROYED};
 pub use world::{
     ObjectKind, ObjectSet, Range, Rule, Task, Terrain, ToolChoice, World, APPLY, EAST, NORTH,
     SELECT0, SOUTH, WEST,

@@ -11,6 +11,10 @@
 //! (one `f32` and one status byte per state). Wake-ups travel on two event services:
 //! clients notify `.../server-wake` after sending; the server notifies the client's own
 //! listener on `.../client-wake`, whose id the client puts in the request's user header.
+//!
+//! [`EmpRequest`]: crate::msg::EmpRequest
+//! [`MAX_BATCH`]: crate::msg::MAX_BATCH
+//! [`EmpResponse`]: crate::msg::EmpResponse
 
 use iceoryx2::prelude::*;
 

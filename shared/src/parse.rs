@@ -10,10 +10,15 @@ use serde::de::{Deserializer, MapAccess, Visitor};
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::state::{State, BOULDER_DESTROYED};
+/// The map: its rows, glyphs and cells' places in the file.
+mod map;
+
+use map::{read_map, Cells, MapText};
+
+use crate::state::{State, BOULDER_DESTROYED, MAX_TOOLS};
 use crate::world::{
-    cond_from_name, default_rules, EmpowermentDefaults, Object, ObjectKind, ObjectSet, Range, Rule,
-    Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT, MAX_OBJECTS, MAX_SIDE, MAX_TOOLS,
+    cond_from_name, default_rules, find_object_by_name, EmpowermentDefaults, Object, ObjectKind,
+    ObjectSet, Range, Rule, Task, Terrain, Tool, ToolChoice, World, DESTROYED, INTACT,
 };
 
 /// A world that could not be loaded.
@@ -216,10 +221,35 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             v as u32
         }
     };
+    let tool_decl = tool_decl(&cx, &raw.tools)?;
+    let map = MapText::new(text, &raw.map);
+    let (width, height) = map.size(&cx)?;
+    let cells = read_map(&cx, &map, width, &tool_decl)?;
+    let (tools, objects) = name_things(&tool_decl, &cells);
+    let tkinds: Vec<String> = tool_decl.iter().map(|t| t.1.clone()).collect();
+    let rules = rules(&cx, &raw.rules, &tools, &tkinds)?;
+    let task = task(&cx, &raw.task, &objects, &cells.terrain)?;
+    let empowerment = empowerment(&cx, &raw.empowerment, &tools, &objects, &tkinds)?;
+    Ok(assemble(Parts {
+        name: name.clone(),
+        max_steps,
+        width,
+        height,
+        terrain: cells.terrain,
+        agent: cells.agent,
+        tools,
+        objects,
+        rules,
+        task,
+        empowerment,
+        source: text.to_string(),
+    }))
+}
 
-    // Tools: letter -> kind, in file order.
+/// `[tools]`: (letter, kind, offset in the file), in file order.
+fn tool_decl(cx: &Ctx, tools: &Ordered) -> Result<Vec<(char, String, usize)>, WorldError> {
     let mut tool_decl: Vec<(char, String, usize)> = Vec::new();
-    for (letter, kind) in &raw.tools.0 {
+    for (letter, kind) in &tools.0 {
         let off = kind.span().start;
         let mut cs = letter.chars();
         let l = match (cs.next(), cs.next()) {
@@ -252,142 +282,12 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             ),
         ));
     }
+    Ok(tool_decl)
+}
 
-    // The map.
-    let map_span = raw.map.span();
-    let map_text = raw.map.get_ref();
-    // Where the string's first character sits: after `"""` and its trimmed newline.
-    let raw_lit = &text[map_span.start.min(text.len())..map_span.end.min(text.len())];
-    let (content_start, plain) = if raw_lit.starts_with("\"\"\"") || raw_lit.starts_with("'''") {
-        let mut s = map_span.start + 3;
-        if text[s..].starts_with("\r\n") {
-            s += 2;
-        } else if text[s..].starts_with('\n') {
-            s += 1;
-        }
-        (s, !raw_lit.contains('\\') || raw_lit.starts_with("'''"))
-    } else {
-        (
-            map_span.start + 1,
-            !raw_lit.contains('\\') || raw_lit.starts_with('\''),
-        )
-    };
-    let map_lines = map_text.strip_suffix('\n').unwrap_or(map_text);
-    let map_lines = map_lines.strip_suffix('\r').unwrap_or(map_lines);
-    let rows: Vec<&str> = map_lines
-        .split('\n')
-        .map(|r| r.strip_suffix('\r').unwrap_or(r))
-        .collect();
-    // Place map cell (row, col) in the file when the literal has no escapes.
-    let cell_at = |row: usize, col: usize| -> usize {
-        if !plain {
-            return map_span.start;
-        }
-        let mut off = content_start;
-        for r in rows.iter().take(row) {
-            // The value's rows may end in "\n" where the file has "\r\n" (TOML
-            // normalises newlines in strings): step over what the file has.
-            off += r.len();
-            let crlf = text.get(off..).is_some_and(|t| t.starts_with("\r\n"));
-            off += if crlf { 2 } else { 1 };
-        }
-        off + rows[row].char_indices().nth(col).map_or(0, |(i, _)| i)
-    };
-    if map_text.trim().is_empty() {
-        return Err(cx.at(map_span.start, "the map is empty"));
-    }
-    let height = rows.len();
-    if height > MAX_SIDE {
-        return Err(cx.at(
-            cell_at(MAX_SIDE, 0),
-            format!("the map is {height} rows tall; at most {MAX_SIDE} are allowed"),
-        ));
-    }
-    let width = rows[0].chars().count();
-    for (y, r) in rows.iter().enumerate() {
-        let w = r.chars().count();
-        if w > MAX_SIDE {
-            return Err(cx.at(
-                cell_at(y, MAX_SIDE),
-                format!(
-                    "map row {} is {w} cells wide; at most {MAX_SIDE} are allowed",
-                    y + 1
-                ),
-            ));
-        }
-        if w != width {
-            return Err(cx.at(cell_at(y, 0), format!("map row {} is {w} cells wide but row 1 is {width}; pad rows with spaces (solid rock) to one width", y + 1)));
-        }
-    }
-    if width == 0 {
-        return Err(cx.at(map_span.start, "the map's rows are empty"));
-    }
-
-    let mut terrain = vec![Terrain::Rock; width * height];
-    let mut agent = None;
-    let mut tools: Vec<Option<(u8, u8)>> = vec![None; tool_decl.len()];
-    let mut objects: Vec<(ObjectKind, (u8, u8))> = Vec::new();
-    for (y, r) in rows.iter().enumerate() {
-        for (x, ch) in r.chars().enumerate() {
-            let c = y * width + x;
-            let pos = (x as u8, y as u8);
-            let here = || cell_at(y, x);
-            terrain[c] = match ch {
-                '#' | '-' | '|' | ' ' => Terrain::Rock,
-                '.' => Terrain::Floor,
-                '>' => Terrain::Goal,
-                '@' => {
-                    if let Some((ax, ay)) = agent {
-                        return Err(cx.at(here(), format!("a second agent '@' at {x},{y}; the first is at {ax},{ay}")));
-                    }
-                    agent = Some(pos);
-                    Terrain::Floor
-                }
-                'T' | '=' | '+' | '0' => {
-                    let kind = match ch {
-                        'T' => ObjectKind::Tree,
-                        '=' => ObjectKind::Wall,
-                        '+' => ObjectKind::Door,
-                        _ => ObjectKind::Boulder,
-                    };
-                    if objects.len() == MAX_OBJECTS {
-                        return Err(cx.at(here(), format!("a world has at most {MAX_OBJECTS} objects; this {} at {x},{y} is number {}", kind.name(), MAX_OBJECTS + 1)));
-                    }
-                    objects.push((kind, pos));
-                    Terrain::Floor
-                }
-                l if l.is_ascii_lowercase() => {
-                    let Some(k) = tool_decl.iter().position(|t| t.0 == l) else {
-                        return Err(cx.at(here(), format!("map letter '{l}' at {x},{y} is not listed in [tools]")));
-                    };
-                    if let Some((px, py)) = tools[k] {
-                        return Err(cx.at(here(), format!("tool letter '{l}' appears twice on the map (at {px},{py} and {x},{y}); give each tool its own letter")));
-                    }
-                    tools[k] = Some(pos);
-                    Terrain::Floor
-                }
-                other => {
-                    return Err(cx.at(here(), format!("unknown glyph '{}' at {x},{y} (known: # - | space . > @ T = + 0 and tool letters)", other.escape_default())))
-                }
-            };
-        }
-    }
-    let Some(agent) = agent else {
-        return Err(cx.at(map_span.start, "the map has no agent '@'"));
-    };
-    for (k, t) in tools.iter().enumerate() {
-        if t.is_none() {
-            return Err(cx.at(
-                tool_decl[k].2,
-                format!(
-                    "tool letter '{}' ({}) is listed in [tools] but not on the map",
-                    tool_decl[k].0, tool_decl[k].1
-                ),
-            ));
-        }
-    }
-
-    // Names: kind, or kind#i when the kind occurs more than once.
+/// The tools and objects with their names: kind, or kind#i when the kind occurs more
+/// than once.
+fn name_things(tool_decl: &[(char, String, usize)], cells: &Cells) -> (Vec<Tool>, Vec<Object>) {
     let name_of = |kinds: &[String], i: usize| -> String {
         let k = &kinds[i];
         if kinds.iter().filter(|x| *x == k).count() > 1 {
@@ -404,11 +304,16 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             letter: t.0,
             kind: t.1.clone(),
             name: name_of(&tkinds, k),
-            pos: tools[k].expect("checked above"),
+            pos: cells.tools[k],
         })
         .collect();
-    let okinds: Vec<String> = objects.iter().map(|o| o.0.name().to_string()).collect();
-    let objects: Vec<Object> = objects
+    let okinds: Vec<String> = cells
+        .objects
+        .iter()
+        .map(|o| o.0.name().to_string())
+        .collect();
+    let objects: Vec<Object> = cells
+        .objects
         .iter()
         .enumerate()
         .map(|(i, o)| Object {
@@ -417,10 +322,18 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             pos: o.1,
         })
         .collect();
+    (tools, objects)
+}
 
-    // Rules: defaults, then the file's.
+/// The rule table: the defaults, then the file's `[[rules]]`.
+fn rules(
+    cx: &Ctx,
+    raw: &[Spanned<RawRule>],
+    tools: &[Tool],
+    tkinds: &[String],
+) -> Result<Vec<Rule>, WorldError> {
     let mut rules = default_rules();
-    for r in &raw.rules {
+    for r in raw {
         let rr = r.get_ref();
         let tk = rr.tool.get_ref();
         if !tools.iter().any(|t| &t.kind == tk) {
@@ -473,21 +386,37 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             range,
         });
     }
+    Ok(rules)
+}
 
-    // The task.
-    let find_object = |s: &Spanned<String>, what: &str| -> Result<usize, WorldError> {
-        let n = s.get_ref();
-        find_object_by_name(&objects, n).ok_or_else(|| {
-            cx.at(
-                s.span().start,
-                format!(
-                    "{what} names object '{n}', which is not on the map (objects: {})",
-                    list_names(&objects)
-                ),
-            )
-        })
-    };
-    let task = match &raw.task {
+/// The object a task or `[empowerment]` (`what`) names.
+fn find_object(
+    cx: &Ctx,
+    objects: &[Object],
+    s: &Spanned<String>,
+    what: &str,
+) -> Result<usize, WorldError> {
+    let n = s.get_ref();
+    find_object_by_name(objects, n).ok_or_else(|| {
+        cx.at(
+            s.span().start,
+            format!(
+                "{what} names object '{n}', which is not on the map (objects: {})",
+                list_names(objects)
+            ),
+        )
+    })
+}
+
+/// The task: none, destroy objects, or push a boulder onto a goal.
+fn task(
+    cx: &Ctx,
+    raw: &Option<Spanned<RawTask>>,
+    objects: &[Object],
+    terrain: &[Terrain],
+) -> Result<Task, WorldError> {
+    let find_object = |s: &Spanned<String>, what: &str| find_object(cx, objects, s, what);
+    Ok(match raw {
         None => Task::None,
         Some(t) => {
             let tr = t.get_ref();
@@ -540,9 +469,18 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
                 }
             }
         }
-    };
+    })
+}
 
-    // Empowerment defaults.
+/// The `[empowerment]` defaults: the paper's when the file gives none.
+fn empowerment(
+    cx: &Ctx,
+    raw: &Option<Spanned<RawEmpowerment>>,
+    tools: &[Tool],
+    objects: &[Object],
+    tkinds: &[String],
+) -> Result<EmpowermentDefaults, WorldError> {
+    let find_object = |s: &Spanned<String>, what: &str| find_object(cx, objects, s, what);
     let mut emp = EmpowermentDefaults {
         tool: ToolChoice::Auto,
         objects: None,
@@ -550,7 +488,7 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         horizon_equipped: 3,
         beta: 0.0,
     };
-    if let Some(e) = &raw.empowerment {
+    if let Some(e) = raw {
         let er = e.get_ref();
         if let Some(t) = &er.tool {
             emp.tool = match t.get_ref().as_str() {
@@ -614,7 +552,43 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             emp.beta = v;
         }
     }
+    Ok(emp)
+}
 
+/// A world's parts as the file gives them.
+struct Parts {
+    name: String,
+    max_steps: u32,
+    width: usize,
+    height: usize,
+    terrain: Vec<Terrain>,
+    agent: (u8, u8),
+    tools: Vec<Tool>,
+    objects: Vec<Object>,
+    rules: Vec<Rule>,
+    task: Task,
+    empowerment: EmpowermentDefaults,
+    source: String,
+}
+
+/// The world, with the tables the dynamics look things up in: each tool's rules and
+/// whether it fires bolts, the tool and static object on each cell, the boulders, and
+/// the initial state.
+fn assemble(p: Parts) -> World {
+    let Parts {
+        name,
+        max_steps,
+        width,
+        height,
+        terrain,
+        agent,
+        tools,
+        objects,
+        rules,
+        task,
+        empowerment,
+        source,
+    } = p;
     let mut tool_rules = Vec::with_capacity(tools.len());
     let mut tool_bolt = Vec::with_capacity(tools.len());
     for t in &tools {
@@ -645,8 +619,8 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     }
     debug_assert!(initial.objects.iter().all(|&v| v != BOULDER_DESTROYED));
 
-    Ok(World {
-        name: name.clone(),
+    World {
+        name,
         max_steps,
         width,
         height,
@@ -660,24 +634,10 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         static_at,
         boulders,
         task,
-        empowerment: emp,
+        empowerment,
         initial,
-        source: text.to_string(),
-    })
-}
-
-pub(crate) fn find_object_by_name(objects: &[Object], n: &str) -> Option<usize> {
-    objects.iter().position(|o| o.name == n).or_else(|| {
-        let (kind, ord) = n.split_once('#')?;
-        let ord: usize = ord.parse().ok()?;
-        let kind = ObjectKind::from_name(kind)?;
-        objects
-            .iter()
-            .enumerate()
-            .filter(|(_, o)| o.kind == kind)
-            .nth(ord)
-            .map(|(i, _)| i)
-    })
+        source,
+    }
 }
 
 fn list_names(objects: &[Object]) -> String {

@@ -35,6 +35,11 @@
 //!
 //! Each data service has an event service beside it (`.../wake`): senders notify after
 //! sending so that receivers can block on a listener instead of polling.
+//!
+//! [`ChunkHeader`]: crate::traj::ChunkHeader
+//! [`ChunkLayout`]: crate::traj::ChunkLayout
+//! [`ChunkLayout::validate`]: crate::traj::ChunkLayout::validate
+//! [`WeightsHeader`]: crate::traj::WeightsHeader
 
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
@@ -42,7 +47,8 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use crate::{Episode, State};
+use crate::env::Episode;
+use crate::state::State;
 
 /// Most actor processes of one run.
 pub const MAX_ACTORS: usize = 64;

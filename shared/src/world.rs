@@ -9,12 +9,9 @@
 
 use crate::state::{Mode, State, BOULDER_DESTROYED};
 
-/// The largest map side, tool count and object count a world may have.
+/// The largest map side a world may have (its tool and object counts are bounded by the
+/// packed state: [`crate::state::MAX_TOOLS`], [`crate::state::MAX_OBJECTS`]).
 pub const MAX_SIDE: usize = 64;
-/// At most this many tools (one inventory bit each).
-pub const MAX_TOOLS: usize = 16;
-/// At most this many objects (one `u16` slot each in [`State`]).
-pub const MAX_OBJECTS: usize = 16;
 
 /// Move north (y - 1).
 pub const NORTH: u8 = 0;
@@ -349,7 +346,7 @@ impl World {
 
     /// Find an object by name (`door`, `door#0`).
     pub fn object_index(&self, s: &str) -> Option<usize> {
-        crate::parse::find_object_by_name(&self.objects, s)
+        find_object_by_name(&self.objects, s)
     }
 
     /// Base terrain at (x, y); `Rock` outside the map.
@@ -642,4 +639,19 @@ impl World {
             Terrain::Goal => '>',
         }
     }
+}
+
+/// The object named `n` (`door`, or `kind#k`: the k-th object of that kind).
+pub(crate) fn find_object_by_name(objects: &[Object], n: &str) -> Option<usize> {
+    objects.iter().position(|o| o.name == n).or_else(|| {
+        let (kind, ord) = n.split_once('#')?;
+        let ord: usize = ord.parse().ok()?;
+        let kind = ObjectKind::from_name(kind)?;
+        objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| o.kind == kind)
+            .nth(ord)
+            .map(|(i, _)| i)
+    })
 }

@@ -1,8 +1,8 @@
-//! Per-mode action masking against the world's own dynamics (the table of WORLD
-//! dynamics in `docs/`): over random reachable states of every built-in world, an action
-//! the mask removes is exactly one that the world turns into nothing (normal mode) or
-//! into "cancel back to normal, nothing else happens" (a prompt), and every action it
-//! allows changes the mode or the world as the table says.
+//! Per-mode action masking against the world's own dynamics (the table of modes and actions
+//! in `docs/world.md`, "Actions and modes"): over random reachable states of every built-in
+//! world, an action the mask removes is exactly one that the world turns into nothing
+//! (normal mode) or into "cancel back to normal, nothing else happens" (a prompt), and
+//! every action it allows changes the mode or the world as the table says.
 
 use fulcrum_shared::mask::action_mask;
 use fulcrum_shared::{load_world, State, World};

@@ -9,11 +9,11 @@
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
 use anyhow::Result;
-use fulcrum_learner::config::RunConfig;
-use fulcrum_learner::run::RunPaths;
+use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::record::record;
 use fulcrum_run::select::load_world;
 use fulcrum_run::{bad, BadRequest};
+use fulcrum_shared::config::RunConfig;
 
 use crate::cli::RecordArgs;
 

@@ -397,7 +397,7 @@ fn bad_input_is_one_sentence_and_exit_code_2() {
         ],
         "the enumerate method at horizon 9",
     );
-    bad_input(&["world", "generate", "--width", "2"], "--width 2");
+    bad_input(&["world", "generate", "--width", "2"], "a world 2 wide");
     // A world file with a mistake: file, line and column.
     let d = TempDir::new("badworld");
     let f = d.join("bad.toml");

@@ -5,7 +5,7 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
-use fulcrum_learner::run::{read_metrics, MetricsRow, METRICS_COLUMNS};
+use fulcrum_learner::metrics::{read_metrics, MetricsRow, METRICS_COLUMNS};
 
 use crate::util::{fulcrum, TempDir};
 

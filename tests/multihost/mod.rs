@@ -13,7 +13,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use fulcrum_learner::run::read_metrics;
+use fulcrum_learner::metrics::read_metrics;
 
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 

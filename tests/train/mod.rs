@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Child, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use fulcrum_learner::run::{read_metrics, MetricsRow};
+use fulcrum_learner::metrics::{read_metrics, MetricsRow};
 use iceoryx2::prelude::*;
 
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
@@ -338,12 +338,12 @@ fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
     // And the final weights are the same bits.
     let dev = candle_core::Device::Cpu;
     let w = fulcrum_shared::load_world("room").unwrap();
-    let shape = fulcrum_learner::config::RunConfig::load(&a.join("config.toml"))
+    let shape = fulcrum_shared::config::RunConfig::load(&a.join("config.toml"))
         .unwrap()
         .shape(&w);
     let flat = |dir: &Path| {
         let net = fulcrum_learner::net::Net::new(shape, 99, &dev).unwrap();
-        let mut adam = fulcrum_learner::ppo::Adam::new(&net).unwrap();
+        let mut adam = fulcrum_learner::adam::Adam::new(&net).unwrap();
         fulcrum_learner::checkpoint::load(
             &dir.join("checkpoints/latest.safetensors"),
             &net,
@@ -363,11 +363,14 @@ fn bad_training_settings_are_refused_before_anything_starts() {
     let dir = TempDir::fresh("bad");
     let d = dir.to_str().unwrap();
     for (args, needle) in [
-        (vec!["room", "--beta", "-1", "--out", d], "--beta"),
-        (vec!["room", "--actors", "0", "--out", d], "--actors"),
+        (vec!["room", "--beta", "-1", "--out", d], "beta -1 must be"),
+        (
+            vec!["room", "--actors", "0", "--out", d],
+            "number of actors",
+        ),
         (
             vec!["room", "--horizon-equipped", "0", "--out", d],
-            "--horizon-equipped",
+            "the horizon with the tool 0",
         ),
         (vec!["room", "--tool", "hammer", "--out", d], "unknown tool"),
         (vec!["no-such-world", "--out", d], "no-such-world"),
@@ -379,7 +382,7 @@ fn bad_training_settings_are_refused_before_anything_starts() {
         ),
         (
             vec!["room", "--horizon-unequipped", "65", "--out", d],
-            "--horizon-unequipped 65",
+            "the horizon without the tool 65",
         ),
         (
             vec![
@@ -400,7 +403,7 @@ fn bad_training_settings_are_refused_before_anything_starts() {
                 "--out",
                 d,
             ],
-            "--intrinsic-value-head needs an intrinsic reward",
+            "the intrinsic value head needs an intrinsic reward",
         ),
         (
             vec![
@@ -411,7 +414,7 @@ fn bad_training_settings_are_refused_before_anything_starts() {
                 "--out",
                 d,
             ],
-            "--gamma-int 1.5",
+            "gamma_int 1.5",
         ),
     ] {
         let (s, err, _) = finish(train(&args), Duration::from_secs(30));

@@ -35,7 +35,8 @@ mod summary;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use fulcrum_learner::run::{read_metrics, RunPaths};
+use fulcrum_learner::metrics::read_metrics;
+use fulcrum_learner::paths::RunPaths;
 use serde::{Deserialize, Serialize};
 
 use crate::error::{bad, BadRequest};

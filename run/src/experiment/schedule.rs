@@ -8,7 +8,7 @@ use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
 use anyhow::{Context, Result};
-use fulcrum_learner::run::RunPaths;
+use fulcrum_learner::paths::RunPaths;
 
 use super::{state, train_args, Job, Spec, State};
 use crate::error::Interrupted;
@@ -180,7 +180,7 @@ pub(super) fn last_steps(dir: &Path) -> u64 {
     let _ = f.read_to_string(&mut tail);
     tail.lines()
         .rev()
-        .filter_map(fulcrum_learner::run::MetricsRow::parse)
+        .filter_map(fulcrum_learner::metrics::MetricsRow::parse)
         .map(|r| r.env_steps)
         .next()
         .unwrap_or(0)

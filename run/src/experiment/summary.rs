@@ -4,7 +4,8 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use fulcrum_learner::run::{read_metrics, MetricsRow, RunPaths};
+use fulcrum_learner::metrics::{read_metrics, MetricsRow};
+use fulcrum_learner::paths::RunPaths;
 use serde::Serialize;
 
 use super::report::{draw, markdown};

@@ -50,9 +50,9 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
         ),
     });
     // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
-    let shape = fulcrum_learner::local::shape_for(&w, 64);
+    let shape = fulcrum_shared::layout::shape_for(&w, 64);
     let net = fulcrum_learner::net::Net::new(shape, 1, &candle_core::Device::Cpu)?;
-    let mut adam = fulcrum_learner::ppo::Adam::new(&net)?;
+    let mut adam = fulcrum_learner::adam::Adam::new(&net)?;
     let n = 1024;
     let mut glyphs = vec![0u8; n * spec.cells()];
     let mut flags = vec![0u8; n * spec.flags];
@@ -72,7 +72,7 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
         .map(|i| ((i * 37) % 11) as f32 / 10.0 - 0.5)
         .collect();
     let ret: Vec<f32> = adv.clone();
-    let cfg = fulcrum_learner::ppo::PpoConfig::default();
+    let cfg = fulcrum_shared::ppo_config::PpoConfig::default();
     let data = fulcrum_learner::local::UpdateData {
         glyphs: &glyphs,
         flags: &flags,
@@ -200,7 +200,7 @@ pub(super) fn train_command(args: &[&str], dir: &std::path::Path) -> Result<std:
 pub(super) fn train_sps(
     args: &[&str],
     dir: &std::path::Path,
-) -> Result<(Vec<f64>, fulcrum_learner::config::RunConfig)> {
+) -> Result<(Vec<f64>, fulcrum_shared::config::RunConfig)> {
     let _ = std::fs::remove_dir_all(dir);
     let out = train_command(args, dir)?
         .stderr(std::process::Stdio::piped())
@@ -211,8 +211,8 @@ pub(super) fn train_sps(
         args.join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
-    let rows = fulcrum_learner::run::read_metrics(&dir.join("metrics.csv"))?;
-    let cfg = fulcrum_learner::config::RunConfig::load(&dir.join("config.toml"))
+    let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv"))?;
+    let cfg = fulcrum_shared::config::RunConfig::load(&dir.join("config.toml"))
         .map_err(anyhow::Error::msg)?;
     let _ = std::fs::remove_dir_all(dir);
     let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
@@ -260,7 +260,7 @@ pub(super) fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<
     let metrics = dir.join("metrics.csv");
     let solved = loop {
         let done = child.try_wait()?;
-        let rows = fulcrum_learner::run::read_metrics(&metrics).unwrap_or_default();
+        let rows = fulcrum_learner::metrics::read_metrics(&metrics).unwrap_or_default();
         let pts: Vec<Point> = rows.iter().map(Point::from).collect();
         if let Some(steps) = steps_to(&smooth(&pts, 10), 0.9) {
             break Some((t0.elapsed().as_secs_f64(), steps));

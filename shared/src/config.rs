@@ -9,7 +9,11 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use crate::ppo::PpoConfig;
+use crate::checkpoint::Extra;
+use crate::intrinsic::Intrinsic;
+use crate::layout::{shape_for, NetShape};
+use crate::ppo_config::PpoConfig;
+use crate::world::World;
 
 /// The resolved configuration of a run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -23,7 +27,7 @@ pub struct RunConfig {
     pub world: String,
     /// The world's name.
     pub world_name: String,
-    /// [`fulcrum_shared::World::content_hash`], hex: a resumed run checks it.
+    /// [`World::content_hash`], hex: a resumed run checks it.
     pub world_hash: String,
     /// Seed of weights, sampling, minibatches and worlds.
     pub seed: u64,
@@ -43,7 +47,7 @@ pub struct RunConfig {
     pub beta: f64,
     /// Whether the run has an empowerment service (every intrinsic form but `none`).
     pub empowerment: bool,
-    /// The intrinsic reward form ([`fulcrum_shared::intrinsic::Intrinsic`]): `none`,
+    /// The intrinsic reward form ([`Intrinsic`]): `none`,
     /// `additive`, `potential` or `count`.
     #[serde(default = "default_intrinsic")]
     pub intrinsic: String,
@@ -71,7 +75,7 @@ pub struct RunConfig {
     /// it (the actor rejoins with its next chunk).
     #[serde(default = "default_stall_timeout")]
     pub stall_timeout_s: f64,
-    /// Per-mode action masking ([`fulcrum_shared::mask`]) in the actors' sampling and the
+    /// Per-mode action masking ([`crate::mask`]) in the actors' sampling and the
     /// learner's log-probabilities and entropy. A configuration written before masking
     /// existed reads as `false`, the way those runs were trained.
     #[serde(default)]
@@ -107,16 +111,15 @@ fn default_horizon_mode() -> String {
 
 impl RunConfig {
     /// The network's shape for this run on `world`.
-    pub fn shape(&self, world: &fulcrum_shared::World) -> crate::net::NetShape {
-        crate::net::NetShape {
+    pub fn shape(&self, world: &World) -> NetShape {
+        NetShape {
             int_value: self.intrinsic_value_head,
-            ..crate::local::shape_for(world, self.hidden)
+            ..shape_for(world, self.hidden)
         }
     }
 
     /// The intrinsic reward form (`none` without a service, whatever the field says).
-    pub fn form(&self) -> fulcrum_shared::intrinsic::Intrinsic {
-        use fulcrum_shared::intrinsic::Intrinsic;
+    pub fn form(&self) -> Intrinsic {
         if !self.empowerment {
             return Intrinsic::None;
         }
@@ -126,7 +129,7 @@ impl RunConfig {
     /// Whether a checkpoint's metadata fits this configuration: the action space (masked
     /// or not) is part of what the policy learnt, so a checkpoint is never continued
     /// with the other setting. Checkpoints from before masking carry no mark.
-    pub fn fits_checkpoint(&self, extra: &crate::checkpoint::Extra) -> Result<(), String> {
+    pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), String> {
         match extra.meta.get("action_mask") {
             Some(m) if *m != self.action_mask.to_string() => Err(format!(
                 "the checkpoint was trained with action_mask = {m}, but config.toml says {}",
@@ -153,43 +156,52 @@ impl RunConfig {
             (
                 !(self.stall_timeout_s.is_finite() && self.stall_timeout_s > 0.0),
                 format!(
-                    "--stall-timeout {} must be a positive number of seconds",
+                    "the stall timeout {} must be a positive number of seconds",
                     self.stall_timeout_s
                 ),
             ),
-            (self.actors == 0, "--actors must be at least 1".into()),
             (
-                self.actors > fulcrum_shared::traj::MAX_ACTORS,
+                self.actors == 0,
+                "the number of actors must be at least 1".into(),
+            ),
+            (
+                self.actors > crate::traj::MAX_ACTORS,
                 format!(
-                    "--actors {} is over the limit of {}",
+                    "{} actors are over the limit of {}",
                     self.actors,
-                    fulcrum_shared::traj::MAX_ACTORS
+                    crate::traj::MAX_ACTORS
                 ),
             ),
             (
                 self.envs_per_actor == 0 || self.envs_per_actor > 4096,
-                format!("--envs-per-actor {} must be 1 to 4096", self.envs_per_actor),
+                format!(
+                    "{} worlds per actor: must be 1 to 4096",
+                    self.envs_per_actor
+                ),
             ),
             (
                 self.steps_per_chunk == 0 || self.steps_per_chunk > 4096,
                 format!(
-                    "--steps-per-chunk {} must be 1 to 4096",
+                    "{} steps per chunk: must be 1 to 4096",
                     self.steps_per_chunk
                 ),
             ),
             (
                 self.learner_threads == 0,
-                "--learner-threads must be at least 1".into(),
+                "the learner's threads must be at least 1".into(),
             ),
             (
                 self.hidden == 0 || self.hidden > 4096,
-                format!("--hidden {} must be 1 to 4096", self.hidden),
+                format!("{} hidden units: must be 1 to 4096", self.hidden),
             ),
             (
                 !self.beta.is_finite() || self.beta < 0.0,
-                format!("--beta {} must be a finite number >= 0", self.beta),
+                format!("beta {} must be a finite number >= 0", self.beta),
             ),
-            (self.total_steps == 0, "--steps must be at least 1".into()),
+            (
+                self.total_steps == 0,
+                "the run's env steps must be at least 1".into(),
+            ),
             (
                 self.ppo.minibatches == 0 || self.ppo.minibatches > b,
                 format!(
@@ -200,7 +212,7 @@ impl RunConfig {
             (self.ppo.epochs == 0, "epochs must be at least 1".into()),
             (
                 self.checkpoint_every == 0,
-                "--checkpoint-every must be at least 1".into(),
+                "the checkpoint interval must be at least 1 update".into(),
             ),
             (
                 !(self.ppo.lr.is_finite() && self.ppo.lr > 0.0),
@@ -212,18 +224,22 @@ impl RunConfig {
                 return Err(why);
             }
         }
-        let form: fulcrum_shared::intrinsic::Intrinsic = self.intrinsic.parse()?;
+        let form: Intrinsic = self.intrinsic.parse()?;
         if self.intrinsic_value_head && !form.uses_service() {
             return Err(
-                "--intrinsic-value-head needs an intrinsic reward (not --no-empowerment)".into(),
+                "the intrinsic value head needs an intrinsic reward (an empowerment service)"
+                    .into(),
             );
         }
         if !(self.gamma_int > 0.0 && self.gamma_int <= 1.0) {
-            return Err(format!("--gamma-int {} must be in (0, 1]", self.gamma_int));
+            return Err(format!(
+                "the intrinsic discount gamma_int {} must be in (0, 1]",
+                self.gamma_int
+            ));
         }
         if form.uses_service() != self.empowerment {
             return Err(format!(
-                "--intrinsic {form} {} an empowerment service",
+                "the intrinsic reward '{form}' {} an empowerment service",
                 if self.empowerment {
                     "does not use"
                 } else {
@@ -236,24 +252,24 @@ impl RunConfig {
             "fixed" if self.horizon_unequipped == self.horizon_equipped => {}
             "fixed" => {
                 return Err(format!(
-                    "--horizon-mode fixed uses one horizon, but --horizon-unequipped {} and --horizon-equipped {} differ",
+                    "horizon mode 'fixed' uses one horizon, but the horizons without and with the tool ({} and {}) differ",
                     self.horizon_unequipped, self.horizon_equipped
                 ))
             }
             other => {
                 return Err(format!(
-                    "unknown --horizon-mode '{other}' (modes: switch, fixed)"
+                    "unknown horizon mode '{other}' (modes: switch, fixed)"
                 ))
             }
         }
         for (h, which) in [
-            (self.horizon_unequipped, "--horizon-unequipped"),
-            (self.horizon_equipped, "--horizon-equipped"),
+            (self.horizon_unequipped, "the horizon without the tool"),
+            (self.horizon_equipped, "the horizon with the tool"),
         ] {
-            if self.empowerment && (h == 0 || h > fulcrum_shared::MAX_HORIZON) {
+            if self.empowerment && (h == 0 || h > crate::parse::MAX_HORIZON) {
                 return Err(format!(
                     "{which} {h} must be 1 to {}",
-                    fulcrum_shared::MAX_HORIZON
+                    crate::parse::MAX_HORIZON
                 ));
             }
         }
@@ -316,20 +332,10 @@ mod tests {
         }
     }
 
-    /// Every preset survives config.toml (RLlib's unclipped gradient norm is `inf`), and
-    /// a configuration written before masking and the new PPO fields reads as those runs
+    /// A configuration written before masking and the new PPO fields reads as those runs
     /// were trained: unmasked, no advantage floor, annealed learning rate, no KL term.
     #[test]
-    fn presets_round_trip_and_old_files_keep_their_meaning() {
-        use crate::ppo::Preset;
-        for p in [Preset::Fulcrum, Preset::CleanRl, Preset::Rllib] {
-            let c = RunConfig {
-                ppo: p.ppo(),
-                ..cfg()
-            };
-            let back: RunConfig = toml::from_str(&c.to_toml()).unwrap();
-            assert_eq!(back, c);
-        }
+    fn old_files_keep_their_meaning() {
         let mut text = cfg().to_toml();
         for key in [
             "action_mask",
@@ -350,12 +356,6 @@ mod tests {
         assert!(old.ppo.lr_anneal && !old.ppo.adv_norm_batch);
         assert_eq!((old.ppo.vf_loss_clip, old.ppo.kl_coef), (0.0, 0.0));
         assert_eq!(old.ppo.lr_at(5, 10), 2.5e-4 * 0.5);
-        // RLlib's rule: x1.5 above twice the target, x0.5 below half of it.
-        let r = Preset::Rllib.ppo();
-        assert_eq!(r.adapt_kl(0.2, 0.03), 0.3);
-        assert_eq!(r.adapt_kl(0.2, 0.004), 0.1);
-        assert_eq!(r.adapt_kl(0.2, 0.01), 0.2);
-        assert_eq!(r.lr_at(5, 10), 5e-5);
     }
 
     #[test]
@@ -374,15 +374,18 @@ mod tests {
         assert!(c.check().is_ok());
         let mut bad = c.clone();
         bad.beta = -1.0;
-        assert!(bad.check().unwrap_err().contains("--beta"));
+        assert!(bad.check().unwrap_err().contains("beta -1"));
         let mut bad = c.clone();
         bad.actors = 0;
-        assert!(bad.check().unwrap_err().contains("--actors"));
+        assert!(bad.check().unwrap_err().contains("number of actors"));
         let mut bad = c.clone();
         bad.empowerment = true;
         bad.intrinsic = "potential".into();
         bad.horizon_equipped = 0;
-        assert!(bad.check().unwrap_err().contains("--horizon-equipped"));
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .contains("the horizon with the tool"));
         let mut bad = c.clone();
         bad.intrinsic = "potential".into();
         assert!(bad

@@ -1,0 +1,67 @@
+//! The actor's side of the empowerment service: connecting (and reconnecting after a
+//! failure), and the pipelined lookups of a chunk's states.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use fulcrum_empowerment::service::{Ask, Client, ClientError};
+use fulcrum_shared::msg::{item, MAX_IN_FLIGHT};
+use fulcrum_shared::{State, World};
+
+use crate::error::ActorError;
+
+/// Send pending states and collect answers until either everything collected is
+/// sent or the pipe is full; then collect one answer.
+pub(crate) fn pump(
+    cl: &mut Client,
+    ask: Ask,
+    states: &[State],
+    sent: &mut usize,
+    answered: &mut usize,
+    out: &mut [f32],
+    sub_batch: usize,
+) -> Result<(), ClientError> {
+    while *sent < states.len() && cl.in_flight() < MAX_IN_FLIGHT {
+        let end = (*sent + sub_batch).min(states.len());
+        cl.submit(ask, &states[*sent..end])?;
+        *sent = end;
+    }
+    if cl.in_flight() > 0 && (cl.in_flight() >= MAX_IN_FLIGHT || *sent == states.len()) {
+        let b = cl.recv()?;
+        if let Some(bad) = b.status.iter().position(|&s| s != item::OK) {
+            return Err(ClientError::Ipc(format!(
+                "state {} of a chunk is not in the world's state space",
+                *answered + bad
+            )));
+        }
+        out[*answered..*answered + b.values.len()].copy_from_slice(&b.values);
+        *answered += b.values.len();
+    }
+    Ok(())
+}
+
+/// Connect to the run's empowerment service, retrying until it answers or `stop`.
+pub(crate) fn connect(
+    namespace: &str,
+    world: &World,
+    stop: &'static AtomicBool,
+) -> Result<Option<Client>, ActorError> {
+    let t0 = Instant::now();
+    loop {
+        if stop.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
+        match Client::connect(namespace, world, Duration::from_secs(2)) {
+            Ok(c) => return Ok(Some(c)),
+            Err(e @ ClientError::WrongWorld { .. }) => {
+                return Err(ActorError::Service(e.to_string()))
+            }
+            Err(e) => {
+                if t0.elapsed() > Duration::from_secs(120) {
+                    return Err(ActorError::Service(e.to_string()));
+                }
+                tracing::info!("waiting for the empowerment service: {e}");
+            }
+        }
+    }
+}

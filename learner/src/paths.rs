@@ -1,0 +1,37 @@
+//! The files of a run directory.
+
+use std::path::PathBuf;
+
+/// Paths inside a run directory.
+#[derive(Debug, Clone)]
+pub struct RunPaths {
+    /// The directory.
+    pub dir: PathBuf,
+}
+
+impl RunPaths {
+    /// `config.toml`.
+    pub fn config(&self) -> PathBuf {
+        self.dir.join("config.toml")
+    }
+    /// `metrics.csv`.
+    pub fn metrics(&self) -> PathBuf {
+        self.dir.join("metrics.csv")
+    }
+    /// `checkpoints/latest.safetensors`.
+    pub fn checkpoint(&self) -> PathBuf {
+        self.dir.join("checkpoints").join("latest.safetensors")
+    }
+    /// `plots/`.
+    pub fn plots(&self) -> PathBuf {
+        self.dir.join("plots")
+    }
+    /// `hosts.csv`: per update and host, the chunks used (runs with `--listen`).
+    pub fn hosts(&self) -> PathBuf {
+        self.dir.join("hosts.csv")
+    }
+    /// `hosts.txt`: `index name address` per remote host, written by the bridge.
+    pub fn host_names(&self) -> PathBuf {
+        self.dir.join("hosts.txt")
+    }
+}

@@ -1,0 +1,615 @@
+//! The learner process of `fulcrum train`: gathers trajectory chunks from shared memory,
+//! runs PPO, publishes weights, writes `metrics.csv` and checkpoints.
+//!
+//! Per update u (of U), with K = `actors` chunks:
+//!
+//! 1. gather K valid chunks: synchronous mode takes one chunk per actor made by the
+//!    current policy version v; with `max_policy_lag = L` any chunk with
+//!    `v - L <= version <= v` counts. Invalid chunks (shape, action range, non-finite
+//!    numbers, another run or world) and stale ones are dropped and counted, never used;
+//! 2. order them by (actor, sequence) so the update does not depend on arrival order;
+//! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
+//!    from the chunk's `trunc_value`, termination does not);
+//! 4. PPO on the concatenated batch with `lr = lr0 * (1 - u / U)`;
+//! 5. publish the weights as version v + 1, append a metrics row, checkpoint every N
+//!    updates and at the end (weights, Adam moments and step, the minibatch RNG,
+//!    counters, and each actor's episode records, so that a resumed run continues
+//!    exactly where the checkpoint was taken).
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
+
+use candle_core::Device;
+use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_shared::traj::{
+    self, ChunkHeader, ChunkLayout, ChunkSubscriber, PolicyFactory, Section, TrainNames,
+    TrajFactory, WeightsHeader, WeightsPublisher,
+};
+use fulcrum_shared::World;
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+
+use crate::adam::Adam;
+use crate::batch::{Batch, Chunk};
+use crate::checkpoint::{self, Extra};
+use crate::counters::Counters;
+use crate::csv::trim_rows;
+use crate::diagnostics::Stats;
+use crate::error::{ipc, LearnerError};
+use crate::hosts::{HostsLog, HOSTS_COLUMNS};
+use crate::local::update;
+use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
+use crate::net::Net;
+use crate::paths::RunPaths;
+
+/// Why the learner stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LearnerExit {
+    /// Every update done; final checkpoint written.
+    Finished,
+    /// Asked to stop; a checkpoint of the last finished update was written.
+    Interrupted,
+}
+
+/// Run the learner until every update is done or `stop` is set. `progress` gets each
+/// metrics row as it is written.
+pub fn run_learner(
+    world: &World,
+    cfg: &RunConfig,
+    paths: &RunPaths,
+    namespace: &str,
+    stop: &'static AtomicBool,
+    progress: impl FnMut(&MetricsRow, u64),
+) -> Result<LearnerExit, LearnerError> {
+    Learner::new(world, cfg, paths, namespace, stop)?.run(progress)
+}
+
+/// The learner's shared-memory ports: chunks and their wake-ups in, weights and theirs
+/// out. The fields drop in the reverse order of their creation.
+struct Ports {
+    notifier: Notifier<ipc::Service>,
+    _policy_wake: EventFactory<ipc::Service>,
+    publisher: WeightsPublisher,
+    _policy: PolicyFactory,
+    listener: Listener<ipc::Service>,
+    _chunks_wake: EventFactory<ipc::Service>,
+    sub: ChunkSubscriber,
+    _chunks: TrajFactory,
+    _node: Node<ipc::Service>,
+}
+
+impl Ports {
+    /// The ports of the run in `namespace`, for weights of `weights` floats.
+    fn open(namespace: &str, weights: usize) -> Result<Ports, LearnerError> {
+        let node = NodeBuilder::new()
+            .signal_handling_mode(SignalHandlingMode::Disabled)
+            .create::<ipc::Service>()
+            .map_err(|e| ipc("node")(&e))?;
+        let names = TrainNames::new(namespace);
+        let tsvc = traj::trajectory_service(&node, &names).map_err(LearnerError::Ipc)?;
+        let sub = tsvc
+            .subscriber_builder()
+            .create()
+            .map_err(|e| ipc("subscriber")(&e))?;
+        let twake =
+            traj::wake_service(&node, &names.trajectories_wake).map_err(LearnerError::Ipc)?;
+        let listener = twake
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc("listener")(&e))?;
+        let psvc = traj::policy_service(&node, &names).map_err(LearnerError::Ipc)?;
+        let publisher = psvc
+            .publisher_builder()
+            .initial_max_slice_len(weights)
+            .max_loaned_samples(2)
+            .create()
+            .map_err(|e| ipc("publisher")(&e))?;
+        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(LearnerError::Ipc)?;
+        let notifier = pwake
+            .notifier_builder()
+            .create()
+            .map_err(|e| ipc("notifier")(&e))?;
+        Ok(Ports {
+            notifier,
+            _policy_wake: pwake,
+            publisher,
+            _policy: psvc,
+            listener,
+            _chunks_wake: twake,
+            sub,
+            _chunks: tsvc,
+            _node: node,
+        })
+    }
+
+    /// Publish `net`'s weights as `version` and wake the actors.
+    fn publish(
+        &self,
+        net: &Net,
+        run: u64,
+        world_hash: u64,
+        version: u64,
+    ) -> Result<(), LearnerError> {
+        let flat = net.flat()?;
+        let mut s = self
+            .publisher
+            .loan_slice_uninit(flat.len())
+            .map_err(|e| ipc("loan weights")(&e))?;
+        *s.user_header_mut() = WeightsHeader {
+            run,
+            world_hash,
+            version,
+            len: flat.len() as u64,
+        };
+        let s = s.write_from_slice(&flat);
+        s.send().map_err(|e| ipc("send weights")(&e))?;
+        let _ = self.notifier.notify();
+        Ok(())
+    }
+}
+
+/// The learner process: the network and its optimiser, the counters a checkpoint
+/// carries, the ports, the run's files, and what it knows of the actors. One method per
+/// phase of an update: [`Learner::gather`] (with [`Learner::admit`]), [`Learner::update`],
+/// [`Learner::publish`], [`Learner::record`], [`Learner::checkpoint`].
+struct Learner<'a> {
+    world: &'a World,
+    cfg: &'a RunConfig,
+    paths: &'a RunPaths,
+    stop: &'static AtomicBool,
+    net: Net,
+    adam: Adam,
+    /// The minibatch generator.
+    rng: ChaCha8Rng,
+    ctr: Counters,
+    /// Each actor's worlds (`env/<actor>`) as of its last chunk used.
+    env_blobs: BTreeMap<String, Vec<u8>>,
+    /// Updates in the run (runs without remote actors).
+    updates: u64,
+    world_hash: u64,
+    /// The run's tag, which chunks must carry.
+    run: u64,
+    layout: ChunkLayout,
+    ports: Ports,
+    metrics: std::fs::File,
+    hosts: Option<HostsLog>,
+    /// Remote actors seen, and whether the learner waits for them (a stalled one is
+    /// live again with its next chunk).
+    roster: BTreeMap<u32, bool>,
+    /// Per actor: (incarnation, last sequence number): a gap is a lost chunk.
+    last_seq: BTreeMap<u32, (u32, u64)>,
+    /// Per actor, its highest incarnation (its restarts).
+    restarts: BTreeMap<u32, u32>,
+    /// Chunks received that belong to a later update.
+    pending: Vec<Chunk>,
+    /// When this session started, and the run's wall time before it.
+    started: Instant,
+    wall0: f64,
+    /// When the last update ended.
+    last: Instant,
+}
+
+impl<'a> Learner<'a> {
+    /// A fresh learner, or the one of the run's checkpoint; its ports open and its
+    /// weights published.
+    fn new(
+        world: &'a World,
+        cfg: &'a RunConfig,
+        paths: &'a RunPaths,
+        namespace: &str,
+        stop: &'static AtomicBool,
+    ) -> Result<Learner<'a>, LearnerError> {
+        let shape = cfg.shape(world);
+        let net = Net::new(shape, cfg.seed, &Device::Cpu)?;
+        let mut adam = Adam::new(&net)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);
+        let mut ctr = Counters {
+            kl_coef: cfg.ppo.kl_coef,
+            ..Counters::default()
+        };
+        let mut env_blobs = BTreeMap::new();
+        let ckpt = paths.checkpoint();
+        if ckpt.exists() {
+            let extra = checkpoint::load(&ckpt, &net, &mut adam)?;
+            cfg.fits_checkpoint(&extra)
+                .map_err(|e| LearnerError::Run(format!("{}: {e}", ckpt.display())))?;
+            ctr.restore(&extra);
+            if let Some(r) = extra
+                .blobs
+                .get("learner_rng")
+                .and_then(|b| checkpoint::rng_restore(b))
+            {
+                rng = r;
+            }
+            env_blobs = extra
+                .blobs
+                .into_iter()
+                .filter(|(k, _)| k.starts_with("env/"))
+                .collect();
+            trim_metrics(&paths.metrics(), ctr.update)?;
+            trim_rows(&paths.hosts(), HOSTS_COLUMNS, ctr.update)?;
+            tracing::info!(update = ctr.update, "resumed from checkpoint");
+        }
+        let layout = ChunkLayout {
+            envs: cfg.envs_per_actor,
+            steps: cfg.steps_per_chunk,
+            cells: shape.cells,
+            flags: shape.flags,
+        };
+        let (run, world_hash) = (traj::run_tag(namespace), world.content_hash());
+        let ports = Ports::open(namespace, net.len())?;
+        ports.publish(&net, run, world_hash, ctr.update)?;
+        let metrics = open_metrics(&paths.metrics())?;
+        let hosts = if cfg.remote {
+            Some(HostsLog::open(paths)?)
+        } else {
+            None
+        };
+        Ok(Learner {
+            world,
+            cfg,
+            paths,
+            stop,
+            net,
+            adam,
+            rng,
+            ctr,
+            env_blobs,
+            updates: cfg.updates(),
+            world_hash,
+            run,
+            layout,
+            ports,
+            metrics,
+            hosts,
+            roster: BTreeMap::new(),
+            last_seq: BTreeMap::new(),
+            restarts: BTreeMap::new(),
+            pending: Vec::new(),
+            started: Instant::now(),
+            wall0: ctr.wall_s,
+            last: Instant::now(),
+        })
+    }
+
+    /// Update after update until the run is done or asked to stop.
+    fn run(
+        mut self,
+        mut progress: impl FnMut(&MetricsRow, u64),
+    ) -> Result<LearnerExit, LearnerError> {
+        while self.more() {
+            let version = self.ctr.update;
+            let Some(chunks) = self.gather(version)? else {
+                return Ok(LearnerExit::Interrupted);
+            };
+            let batch = Batch::new(
+                &chunks,
+                &self.layout,
+                self.cfg,
+                version,
+                &mut self.ctr.int_std,
+            );
+            for c in &chunks {
+                self.env_blobs.insert(
+                    format!("env/{}", c.h.actor),
+                    c.data[self.layout.range(Section::EnvState)].to_vec(),
+                );
+            }
+            let stats = self.update(&batch)?;
+            self.publish(self.ctr.update)?;
+            let row = self.record(stats, &batch, &chunks)?;
+            progress(&row, self.planned(batch.len));
+            if self.ctr.update % self.cfg.checkpoint_every == 0 || !self.more() {
+                self.ctr.wall_s = row.wall_s;
+                self.checkpoint()?;
+            }
+        }
+        Ok(LearnerExit::Finished)
+    }
+
+    /// Whether updates remain: by count, or with remote actors by env steps.
+    fn more(&self) -> bool {
+        if self.cfg.remote {
+            self.ctr.env_steps < self.cfg.total_steps
+        } else {
+            self.ctr.update < self.updates
+        }
+    }
+
+    /// Chunks an update takes: one per local actor and per live remote one.
+    fn target(&self) -> usize {
+        self.cfg.actors + self.roster.values().filter(|&&l| l).count()
+    }
+
+    /// Gather the chunks of the update after `version`, ordered by (actor, sequence) so
+    /// that the update does not depend on arrival order; `None` when asked to stop (a
+    /// checkpoint of the last finished update written).
+    fn gather(&mut self, version: u64) -> Result<Option<Vec<Chunk>>, LearnerError> {
+        let mut batch: Vec<Chunk> = Vec::with_capacity(self.target());
+        // Chunks received earlier that are still usable.
+        for c in std::mem::take(&mut self.pending) {
+            let k = self.target();
+            self.admit(c, version, k, &mut batch);
+        }
+        let stall = Duration::from_secs_f64(self.cfg.stall_timeout_s);
+        let mut idle = Instant::now();
+        let mut gather = Instant::now();
+        while batch.len() < self.target() {
+            if self.stop.load(Ordering::Relaxed) {
+                self.ctr.wall_s = self.wall0 + self.started.elapsed().as_secs_f64();
+                self.checkpoint()?;
+                return Ok(None);
+            }
+            let got = self.receive(version, &mut batch)?;
+            if self.cfg.remote && !got && gather.elapsed() > stall {
+                self.go_on_without_stalled(&batch);
+                gather = Instant::now();
+            }
+            if !got && batch.len() < self.target() {
+                let _ = self
+                    .ports
+                    .listener
+                    .timed_wait(|_| {}, Duration::from_millis(50));
+                if idle.elapsed() > Duration::from_secs(1) {
+                    // Weights may have been missed by a (re)started actor: repeat them.
+                    idle = Instant::now();
+                    self.publish(version)?;
+                }
+            }
+        }
+        batch.sort_by_key(|c| (c.h.actor, c.h.incarnation, c.h.seq));
+        Ok(Some(batch))
+    }
+
+    /// Take what has arrived: invalid chunks (shape, action range, non-finite numbers,
+    /// another run or world) are dropped and counted, the others admitted, until the
+    /// batch is full. Returns whether anything arrived.
+    fn receive(&mut self, version: u64, batch: &mut Vec<Chunk>) -> Result<bool, LearnerError> {
+        let n_actions = self.world.num_actions();
+        let mut got = false;
+        while let Some(sample) = self.ports.sub.receive().map_err(|e| ipc("receive")(&e))? {
+            got = true;
+            let h = *sample.user_header();
+            let payload: &[u8] = sample.payload();
+            if h.run != self.run || h.world_hash != self.world_hash {
+                self.ctr.dropped += 1;
+                tracing::warn!(actor = h.actor, "dropped a chunk of another run or world");
+                continue;
+            }
+            if let Err(why) = self.layout.validate(&h, n_actions, payload) {
+                self.ctr.dropped += 1;
+                tracing::warn!(actor = h.actor, seq = h.seq, why, "dropped a bad chunk");
+                continue;
+            }
+            self.arrived(&h);
+            let c = Chunk {
+                h,
+                data: payload.to_vec(),
+            };
+            let k = self.target();
+            self.admit(c, version, k, batch);
+            if batch.len() >= k {
+                break;
+            }
+        }
+        Ok(got)
+    }
+
+    /// Note a valid chunk's sender: its restarts, the chunks lost before it (a gap in
+    /// its sequence), a remote actor joining.
+    fn arrived(&mut self, h: &ChunkHeader) {
+        let r = self.restarts.entry(h.actor).or_default();
+        *r = (*r).max(h.incarnation);
+        if let Some(&(inc, s)) = self.last_seq.get(&h.actor) {
+            if inc == h.incarnation && h.seq > s + 1 {
+                let gap = h.seq - s - 1;
+                self.ctr.lost += gap;
+                if let Some(log) = self.hosts.as_mut() {
+                    *log.lost.entry(traj::host_of(h.actor)).or_default() += gap;
+                }
+                tracing::warn!(
+                    actor = h.actor,
+                    lost = gap,
+                    "chunks of an actor never arrived"
+                );
+            }
+        }
+        self.last_seq.insert(h.actor, (h.incarnation, h.seq));
+        if self.cfg.remote
+            && traj::host_of(h.actor) > 0
+            && self.roster.insert(h.actor, true) != Some(true)
+        {
+            tracing::info!(
+                actor = h.actor,
+                host = traj::host_of(h.actor),
+                "a remote actor joined"
+            );
+        }
+    }
+
+    /// Put a received chunk where it belongs: into this update's batch, back into
+    /// `pending` (made by a newer policy than the learner's: cannot happen in order, kept
+    /// for safety), or dropped as stale. Synchronous mode takes one chunk per actor made
+    /// by the current policy version; with `max_policy_lag = L` any chunk with
+    /// `version - L <= its version <= version` counts.
+    fn admit(&mut self, c: Chunk, version: u64, target: usize, batch: &mut Vec<Chunk>) {
+        let v = c.h.policy_version;
+        if v > version {
+            self.pending.push(c);
+            return;
+        }
+        let lag = version - v;
+        let fresh = if self.cfg.max_policy_lag == 0 {
+            lag == 0 && !batch.iter().any(|b| b.h.actor == c.h.actor)
+        } else {
+            lag <= self.cfg.max_policy_lag
+        };
+        if fresh && batch.len() < target {
+            batch.push(c);
+        } else if fresh {
+            self.pending.push(c);
+        } else {
+            self.ctr.dropped += 1;
+            tracing::debug!(actor = c.h.actor, v, version, "dropped a stale chunk");
+        }
+    }
+
+    /// Go on without the remote actors that have not delivered within the stall
+    /// timeout; each is awaited again from its next chunk.
+    fn go_on_without_stalled(&mut self, batch: &[Chunk]) {
+        for (a, live) in self.roster.iter_mut() {
+            if *live && !batch.iter().any(|c| c.h.actor == *a) {
+                *live = false;
+                tracing::warn!(
+                    actor = *a,
+                    host = traj::host_of(*a),
+                    "no chunk from a remote actor within the stall timeout: going on without it"
+                );
+            }
+        }
+    }
+
+    /// PPO on the batch, at the learning rate of this update (annealed linearly to 0
+    /// over the run's updates, or over its env steps with remote actors); the KL
+    /// coefficient adapts, the counters advance.
+    fn update(&mut self, batch: &Batch) -> Result<Stats, LearnerError> {
+        let ppo = self.cfg.ppo;
+        let lr = if self.cfg.remote && ppo.lr_anneal {
+            ppo.lr * (1.0 - (self.ctr.env_steps as f64 / self.cfg.total_steps as f64).min(1.0))
+        } else {
+            ppo.lr_at(self.ctr.update, self.updates)
+        };
+        let stats = update(
+            &self.net,
+            &mut self.adam,
+            &PpoConfig {
+                kl_coef: self.ctr.kl_coef,
+                ..ppo
+            },
+            lr,
+            &mut self.rng,
+            &batch.update_data(),
+        )?;
+        self.ctr.kl_coef = ppo.adapt_kl(self.ctr.kl_coef, stats.approx_kl);
+        self.ctr.update += 1;
+        self.ctr.env_steps += batch.len as u64;
+        self.ctr.episodes += batch.sums.episodes;
+        Ok(stats)
+    }
+
+    /// Publish the weights as `version`.
+    fn publish(&self, version: u64) -> Result<(), LearnerError> {
+        self.ports
+            .publish(&self.net, self.run, self.world_hash, version)
+    }
+
+    /// The update's metrics row, appended to `metrics.csv` (and `hosts.csv`).
+    fn record(
+        &mut self,
+        stats: Stats,
+        batch: &Batch,
+        chunks: &[Chunk],
+    ) -> Result<MetricsRow, LearnerError> {
+        let s = batch.sums;
+        let total = batch.len;
+        let per_ep = |x: f64| {
+            if s.episodes > 0 {
+                x / s.episodes as f64
+            } else {
+                f64::NAN
+            }
+        };
+        let now = Instant::now();
+        if self.ctr.first_pickup == 0 && s.pickups > 0 {
+            self.ctr.first_pickup = self.ctr.env_steps;
+        }
+        let row = MetricsRow {
+            update: self.ctr.update,
+            env_steps: self.ctr.env_steps,
+            episodes: s.episodes,
+            extrinsic_return: per_ep(s.ext_return),
+            success_rate: per_ep(s.successes as f64),
+            intrinsic_return: per_ep(s.int_return),
+            intrinsic_mean: s.int_reward / total as f64,
+            episode_length: per_ep(s.length),
+            pickup_rate: per_ep(s.pickups as f64),
+            stats,
+            sps: total as f64 / now.duration_since(self.last).as_secs_f64().max(1e-9),
+            policy_lag: s.lag / chunks.len() as f64,
+            dropped_chunks: self.ctr.dropped,
+            actor_restarts: self.restarts.values().map(|&r| r as u64).sum(),
+            wall_s: self.wall0 + self.started.elapsed().as_secs_f64(),
+            e_positive_frac: if self.cfg.form().uses_empowerment() {
+                s.e_positive as f64 / total as f64
+            } else {
+                f64::NAN
+            },
+            first_pickup_step: (self.ctr.first_pickup > 0).then_some(self.ctr.first_pickup),
+            lost_chunks: self.ctr.lost,
+            remote_actors: chunks
+                .iter()
+                .filter(|c| traj::host_of(c.h.actor) > 0)
+                .count() as u64,
+        };
+        self.last = now;
+        writeln!(self.metrics, "{}", row.csv())
+            .and_then(|_| self.metrics.flush())
+            .map_err(|e| {
+                LearnerError::Run(format!(
+                    "cannot append to {}: {e}",
+                    self.paths.metrics().display()
+                ))
+            })?;
+        if let Some(log) = self.hosts.as_mut() {
+            let per_chunk = (self.layout.envs * self.layout.steps) as u64;
+            log.append(self.paths, self.ctr.update, chunks, per_chunk, &self.roster)?;
+        }
+        Ok(row)
+    }
+
+    /// The updates the run will have: with remote actors, those so far plus those the
+    /// remaining steps need at this batch size of `total` steps.
+    fn planned(&self, total: usize) -> u64 {
+        if self.cfg.remote {
+            self.ctr.update
+                + self
+                    .cfg
+                    .total_steps
+                    .saturating_sub(self.ctr.env_steps)
+                    .div_ceil(total as u64)
+        } else {
+            self.updates
+        }
+    }
+
+    /// Write the checkpoint: weights, Adam's moments and step, the minibatch generator,
+    /// the counters, and each actor's worlds, so that a resumed run continues exactly
+    /// where it was taken.
+    fn checkpoint(&self) -> Result<(), LearnerError> {
+        let mut extra = Extra::default();
+        self.ctr.store(&mut extra);
+        extra
+            .meta
+            .insert("action_mask".into(), self.cfg.action_mask.to_string());
+        extra
+            .blobs
+            .insert("learner_rng".into(), checkpoint::rng_state(&self.rng));
+        for (k, v) in &self.env_blobs {
+            extra.blobs.insert(k.clone(), v.clone());
+        }
+        let path = self.paths.checkpoint();
+        if let Some(dir) = path.parent() {
+            std::fs::create_dir_all(dir)
+                .map_err(|e| LearnerError::Run(format!("cannot create {}: {e}", dir.display())))?;
+        }
+        checkpoint::save(&path, &self.net, &self.adam, &extra)?;
+        Ok(())
+    }
+}
