@@ -6,6 +6,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use fulcrum_run::child::ChildRequest;
 use fulcrum_run::plan::TrainRequest;
 use fulcrum_run::BadRequest;
+use fulcrum_shared::config::ChannelTool;
+use fulcrum_shared::intrinsic::Intrinsic;
 
 /// fulcrum: tool worlds, exact object empowerment, and PPO agents that learn to use tools.
 #[derive(Debug, Parser)]
@@ -688,11 +690,20 @@ impl TrainArgs {
             world: a.world.clone(),
             beta: a.beta,
             intrinsic: if a.no_empowerment {
-                Some("none".into())
+                Some(Intrinsic::None)
             } else {
-                a.intrinsic.clone()
+                a.intrinsic
+                    .as_deref()
+                    .map(str::parse)
+                    .transpose()
+                    .map_err(BadRequest)?
             },
-            horizon_mode: a.horizon_mode.clone(),
+            horizon_mode: a
+                .horizon_mode
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(BadRequest)?,
             intrinsic_value_head: a.intrinsic_value_head,
             gamma_int: a.gamma_int,
             action_mask: !a.no_action_mask,
@@ -705,7 +716,7 @@ impl TrainArgs {
             steps_per_chunk: a.steps_per_chunk,
             learner_threads: a.learner_threads,
             hidden: a.hidden,
-            tool: a.tool.clone(),
+            tool: a.tool.as_deref().map(ChannelTool::from),
             objects: a.objects.clone(),
             horizon_unequipped: a.horizon_unequipped,
             horizon_equipped: a.horizon_equipped,

@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::preset::Preset;
-use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::config::{ChannelTool, HorizonMode, RunConfig};
 use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
@@ -29,9 +29,9 @@ pub struct TrainRequest {
     /// Intrinsic reward weight.
     pub beta: Option<f64>,
     /// The intrinsic reward form's name (`none` for plain PPO).
-    pub intrinsic: Option<String>,
+    pub intrinsic: Option<Intrinsic>,
     /// `switch` (held / not-held horizons) or `fixed` (one horizon).
-    pub horizon_mode: Option<String>,
+    pub horizon_mode: Option<HorizonMode>,
     /// Two value heads (extrinsic and intrinsic returns apart).
     pub intrinsic_value_head: bool,
     /// Discount of the intrinsic value head.
@@ -57,7 +57,7 @@ pub struct TrainRequest {
     /// Hidden units.
     pub hidden: Option<usize>,
     /// The empowerment channel's tool (`auto`, `all` or a tool).
-    pub tool: Option<String>,
+    pub tool: Option<ChannelTool>,
     /// The empowerment channel's objects, comma separated.
     pub objects: Option<String>,
     /// Horizon where the tool is not held.
@@ -218,11 +218,9 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         } else {
             spec.clone()
         };
-    let form: Intrinsic = match &a.intrinsic {
-        Some(f) => f.parse().map_err(BadRequest)?,
-        None => Intrinsic::Additive,
-    };
-    let fixed = a.horizon_mode.as_deref() == Some("fixed");
+    let form = a.intrinsic.unwrap_or(Intrinsic::Additive);
+    let mode = a.horizon_mode.unwrap_or_default();
+    let fixed = mode == HorizonMode::Fixed;
     let preset: Preset = a
         .ppo_preset
         .as_deref()
@@ -257,9 +255,9 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             a.beta.unwrap_or(form.default_beta(e.beta))
         },
         empowerment: form.uses_service(),
-        intrinsic: form.name().into(),
-        horizon_mode: a.horizon_mode.clone().unwrap_or_else(|| "switch".into()),
-        tool: a.tool.clone().unwrap_or_else(|| "default".into()),
+        intrinsic: form,
+        horizon_mode: mode,
+        tool: a.tool.clone().unwrap_or_default(),
         objects: a.objects.clone().unwrap_or_default(),
         horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
         horizon_equipped: match (fixed, a.horizon_equipped) {
@@ -293,8 +291,8 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             &w,
             (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
         )?;
-        if let Some(t) = &a.tool {
-            if t != "auto" && t != "all" && w.tool_index(t).is_none() {
+        if let Some(ChannelTool::Named(t)) = &a.tool {
+            if w.tool_index(t).is_none() {
                 return bad(format!(
                     "unknown tool '{t}' in world '{}' (tools: {}; or all, auto)",
                     w.name,

@@ -55,12 +55,7 @@ pub fn record(
     // E for every state, by the run's channel.
     let e = engine(w)?;
     let set = objects_or_default(w, (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()))?;
-    let tool: ToolSel = tool_sel(
-        w,
-        &e,
-        (cfg.tool != "default").then_some(cfg.tool.as_str()),
-        &set,
-    )?;
+    let tool: ToolSel = tool_sel(w, &e, cfg.tool.as_request(), &set)?;
     let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
     let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;
     let value = |s: &fulcrum_shared::State| -> Option<f64> {

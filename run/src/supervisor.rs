@@ -171,8 +171,8 @@ impl Supervisor {
             "--horizon-equipped".into(),
             self.cfg.horizon_equipped.to_string(),
         ];
-        if self.cfg.tool != "default" {
-            args.extend(["--tool".into(), self.cfg.tool.clone()]);
+        if let Some(t) = self.cfg.tool.as_request() {
+            args.extend(["--tool".into(), t.to_string()]);
         }
         if !self.cfg.objects.is_empty() {
             args.extend(["--objects".into(), self.cfg.objects.clone()]);

@@ -5,7 +5,9 @@
 //! transitions: the batch is `B = actors * envs_per_actor * steps_per_chunk` env steps,
 //! and the run makes `ceil(total_steps / B)` updates.
 
+use std::fmt;
 use std::path::Path;
+use std::str::FromStr;
 
 use serde::{Deserialize, Serialize};
 
@@ -47,15 +49,14 @@ pub struct RunConfig {
     pub beta: f64,
     /// Whether the run has an empowerment service (every intrinsic form but `none`).
     pub empowerment: bool,
-    /// The intrinsic reward form ([`Intrinsic`]): `none`,
-    /// `additive`, `potential` or `count`.
+    /// The intrinsic reward form, written by its name (`none`, `additive`, ...).
     #[serde(default = "default_intrinsic")]
-    pub intrinsic: String,
-    /// `switch` (the held / not-held horizons) or `fixed` (one horizon everywhere).
-    #[serde(default = "default_horizon_mode")]
-    pub horizon_mode: String,
-    /// Tool of the channel (`auto`, a kind, or `all`).
-    pub tool: String,
+    pub intrinsic: Intrinsic,
+    /// How the horizon follows the inventory (`switch` or `fixed`).
+    #[serde(default)]
+    pub horizon_mode: HorizonMode,
+    /// Tool of the channel (`default`, `auto`, `all` or a tool).
+    pub tool: ChannelTool,
     /// Objects of interest, comma separated (empty = the world's default).
     pub objects: String,
     /// Horizon where the tool is not held.
@@ -93,8 +94,8 @@ pub struct RunConfig {
     pub ppo: PpoConfig,
 }
 
-fn default_intrinsic() -> String {
-    "additive".into()
+fn default_intrinsic() -> Intrinsic {
+    Intrinsic::Additive
 }
 
 fn default_gamma_int() -> f32 {
@@ -105,8 +106,83 @@ fn default_stall_timeout() -> f64 {
     10.0
 }
 
-fn default_horizon_mode() -> String {
-    "switch".into()
+/// How the empowerment horizon follows the inventory.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum HorizonMode {
+    /// `h_e` where the channel's tool is held, `h_u` elsewhere.
+    #[default]
+    Switch,
+    /// One horizon everywhere (`h_u = h_e`).
+    Fixed,
+}
+
+impl FromStr for HorizonMode {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "switch" => Ok(HorizonMode::Switch),
+            "fixed" => Ok(HorizonMode::Fixed),
+            other => Err(format!(
+                "unknown horizon mode '{other}' (modes: switch, fixed)"
+            )),
+        }
+    }
+}
+
+/// The empowerment channel's tool as a run names it, written as text in `config.toml`.
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub enum ChannelTool {
+    /// The world's `[empowerment]` tool.
+    #[default]
+    Default,
+    /// Tool selection by the matrix.
+    Auto,
+    /// Every action (no tool).
+    All,
+    /// A tool by name, kind or letter.
+    Named(String),
+}
+
+impl ChannelTool {
+    /// The tool as a request names it (`None` for the world's own).
+    pub fn as_request(&self) -> Option<&str> {
+        match self {
+            ChannelTool::Default => None,
+            ChannelTool::Auto => Some("auto"),
+            ChannelTool::All => Some("all"),
+            ChannelTool::Named(t) => Some(t),
+        }
+    }
+}
+
+impl From<&str> for ChannelTool {
+    fn from(s: &str) -> ChannelTool {
+        match s {
+            "default" => ChannelTool::Default,
+            "auto" => ChannelTool::Auto,
+            "all" => ChannelTool::All,
+            t => ChannelTool::Named(t.to_string()),
+        }
+    }
+}
+
+impl fmt::Display for ChannelTool {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_request().unwrap_or("default"))
+    }
+}
+
+impl Serialize for ChannelTool {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for ChannelTool {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        Ok(ChannelTool::from(String::deserialize(d)?.as_str()))
+    }
 }
 
 impl RunConfig {
@@ -123,7 +199,7 @@ impl RunConfig {
         if !self.empowerment {
             return Intrinsic::None;
         }
-        self.intrinsic.parse().unwrap_or(Intrinsic::Additive)
+        self.intrinsic
     }
 
     /// Whether a checkpoint's metadata fits this configuration: the action space (masked
@@ -224,7 +300,7 @@ impl RunConfig {
                 return Err(why);
             }
         }
-        let form: Intrinsic = self.intrinsic.parse()?;
+        let form = self.intrinsic;
         if self.intrinsic_value_head && !form.uses_service() {
             return Err(
                 "the intrinsic value head needs an intrinsic reward (an empowerment service)"
@@ -247,18 +323,13 @@ impl RunConfig {
                 }
             ));
         }
-        match self.horizon_mode.as_str() {
-            "switch" => {}
-            "fixed" if self.horizon_unequipped == self.horizon_equipped => {}
-            "fixed" => {
+        match self.horizon_mode {
+            HorizonMode::Switch => {}
+            HorizonMode::Fixed if self.horizon_unequipped == self.horizon_equipped => {}
+            HorizonMode::Fixed => {
                 return Err(format!(
                     "horizon mode 'fixed' uses one horizon, but the horizons without and with the tool ({} and {}) differ",
                     self.horizon_unequipped, self.horizon_equipped
-                ))
-            }
-            other => {
-                return Err(format!(
-                    "unknown horizon mode '{other}' (modes: switch, fixed)"
                 ))
             }
         }
@@ -315,9 +386,9 @@ mod tests {
             hidden: 64,
             beta: 0.0,
             empowerment: false,
-            intrinsic: "none".into(),
-            horizon_mode: "switch".into(),
-            tool: "auto".into(),
+            intrinsic: Intrinsic::None,
+            horizon_mode: HorizonMode::Switch,
+            tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,
             horizon_equipped: 1,
@@ -380,23 +451,30 @@ mod tests {
         assert!(bad.check().unwrap_err().contains("number of actors"));
         let mut bad = c.clone();
         bad.empowerment = true;
-        bad.intrinsic = "potential".into();
+        bad.intrinsic = Intrinsic::Potential;
         bad.horizon_equipped = 0;
         assert!(bad
             .check()
             .unwrap_err()
             .contains("the horizon with the tool"));
         let mut bad = c.clone();
-        bad.intrinsic = "potential".into();
+        bad.intrinsic = Intrinsic::Potential;
         assert!(bad
             .check()
             .unwrap_err()
             .contains("needs an empowerment service"));
-        let mut bad = c.clone();
-        bad.intrinsic = "novelty".into();
-        assert!(bad.check().unwrap_err().contains("'novelty'"));
+        // An unknown form or mode cannot be represented: the file is refused on load.
+        let text = c
+            .to_toml()
+            .replace("intrinsic = \"none\"", "intrinsic = \"novelty\"");
+        let err = toml::from_str::<RunConfig>(&text).unwrap_err().to_string();
+        assert!(err.contains("'novelty'"), "{err}");
+        let text = c
+            .to_toml()
+            .replace("horizon_mode = \"switch\"", "horizon_mode = \"often\"");
+        assert!(toml::from_str::<RunConfig>(&text).is_err());
         let mut bad = c;
-        bad.horizon_mode = "fixed".into();
+        bad.horizon_mode = HorizonMode::Fixed;
         assert!(bad.check().unwrap_err().contains("differ"));
     }
 }

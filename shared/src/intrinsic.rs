@@ -128,6 +128,19 @@ impl fmt::Display for Intrinsic {
     }
 }
 
+impl serde::Serialize for Intrinsic {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Intrinsic {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        name.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 impl FromStr for Intrinsic {
     type Err = String;
     fn from_str(s: &str) -> Result<Self, String> {

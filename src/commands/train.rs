@@ -9,6 +9,7 @@ use fulcrum_learner::metrics::read_metrics;
 use fulcrum_run::plan::{resolve, Planned};
 use fulcrum_run::supervisor::{supervise, Options, Outcome};
 use fulcrum_run::{bad, Interrupted};
+use fulcrum_shared::config::HorizonMode;
 
 use crate::cli::{ChildArgs, TrainArgs};
 
@@ -50,7 +51,7 @@ pub fn run(a: &TrainArgs) -> Result<()> {
                 ", {} intrinsic reward, beta {}{}",
                 cfg.intrinsic,
                 cfg.beta,
-                if cfg.horizon_mode == "fixed" {
+                if cfg.horizon_mode == HorizonMode::Fixed {
                     ", one horizon"
                 } else {
                     ""
