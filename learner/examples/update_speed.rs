@@ -6,12 +6,8 @@
 //! Wall-clock times on a shared 2-core VM drift by up to 2x over minutes: compare
 //! variants by interleaved runs.
 //!
-//! - `OLD=1`: time the candle-autograd update the fused one replaced (kept here as
-//!   `update_candle`, with candle-op Adam), single-threaded with `RAYON_NUM_THREADS=1
-//!   CANDLE_NUM_THREADS=1`.
-//! - `PHASES=1`: split the time of an update into its phases (for the fused one: data
-//!   preparation, loading, gradient, clipping + Adam, storing; for `OLD=1`: forward +
-//!   loss, backward + clipping, Adam).
+//! - `PHASES=1`: split the time of an update into its phases (data preparation,
+//!   loading, gradient, clipping + Adam, storing).
 //! - `TREND=1`: print every update's time and stats, then the number of subnormal
 //!   weights and moments and a hash of the weights.
 
@@ -20,12 +16,10 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use std::time::Instant;
 
-use candle_core::{Device, Result, Tensor};
+use candle_core::Device;
 use fulcrum_learner::adam::Adam;
-use fulcrum_learner::diagnostics::Stats;
 use fulcrum_learner::local::{update, UpdateData};
 use fulcrum_learner::net::Net;
-use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
 use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::load_world;
 use fulcrum_shared::ppo_config::PpoConfig;
@@ -88,8 +82,7 @@ fn main() {
         prep.dense_samples(),
         prep.differing_cells() as f64 / (n - prep.dense_samples()).max(1) as f64
     );
-    let old = std::env::var("OLD").is_ok_and(|v| v == "1");
-    if !old && std::env::var("PHASES").is_ok_and(|v| v == "1") {
+    if std::env::var("PHASES").is_ok_and(|v| v == "1") {
         // Time the fused update's phases: as `update`, with clocks between them.
         let mb = n / cfg.minibatches;
         let mut idx: Vec<usize> = (0..n).collect();
@@ -139,7 +132,6 @@ fn main() {
         );
         return;
     }
-    let update = if old { update_candle } else { update };
     // One warm-up update.
     update(&net, &mut adam, &cfg, 2.5e-4, &mut rng, &data).unwrap();
     let mut ms = Vec::with_capacity(reps);
@@ -171,125 +163,10 @@ fn main() {
     ms.sort_by(|a, b| a.partial_cmp(b).unwrap());
     let med = ms[ms.len() / 2];
     println!(
-        "{} n {n}: update median {med:.3} ms (min {:.3}, max {:.3}) -> {:.0} samples x epochs/s; {:?}",
-        if old { "candle" } else { "fused" },
+        "fused n {n}: update median {med:.3} ms (min {:.3}, max {:.3}) -> {:.0} samples x epochs/s; {:?}",
         ms[0],
         ms[ms.len() - 1],
         (n * cfg.epochs) as f64 / (med / 1e3),
         last.unwrap()
     );
-}
-
-/// Adam as candle ops (the implementation before the fused one).
-fn adam_candle(adam: &mut Adam, net: &Net, grads: &[Tensor], lr: f64) -> Result<()> {
-    const B1: f64 = 0.9;
-    const B2: f64 = 0.999;
-    const EPS: f64 = 1e-5;
-    adam.step += 1;
-    let t = adam.step as i32;
-    let (c1, c2) = (1.0 - B1.powi(t), 1.0 - B2.powi(t));
-    for (i, ((_, var), g)) in net.params.iter().zip(grads).enumerate() {
-        adam.m[i] = ((&adam.m[i] * B1)? + (g * (1.0 - B1))?)?;
-        adam.v[i] = ((&adam.v[i] * B2)? + (g.sqr()? * (1.0 - B2))?)?;
-        let mhat = (&adam.m[i] / c1)?;
-        let denom = ((&adam.v[i] / c2)?.sqrt()? + EPS)?;
-        let upd = ((mhat / denom)? * lr)?;
-        var.set(&(var.as_tensor() - upd)?)?;
-    }
-    Ok(())
-}
-
-/// The candle-autograd update (before the fused one).
-fn update_candle(
-    net: &Net,
-    adam: &mut Adam,
-    cfg: &PpoConfig,
-    lr: f64,
-    rng: &mut ChaCha8Rng,
-    d: &UpdateData,
-) -> Result<Stats> {
-    let n = d.actions.len();
-    let (c, f) = (net.shape.cells, net.shape.flags);
-    let mb = n / cfg.minibatches.max(1);
-    let mut idx: Vec<usize> = (0..n).collect();
-    let mut sum = Stats::default();
-    let mut count = 0;
-    let dev = net.device().clone();
-    let t_start = Instant::now();
-    let mut times = [0.0f64; 3];
-    for _ in 0..cfg.epochs {
-        idx.shuffle(rng);
-        for chunk in idx.chunks(mb.max(1)) {
-            let g: Vec<u8> = chunk
-                .iter()
-                .flat_map(|&i| d.glyphs[i * c..(i + 1) * c].iter().copied())
-                .collect();
-            let fl: Vec<u8> = chunk
-                .iter()
-                .flat_map(|&i| d.flags[i * f..(i + 1) * f].iter().copied())
-                .collect();
-            let pick_f = |v: &[f32]| {
-                Tensor::from_vec(
-                    chunk.iter().map(|&i| v[i]).collect::<Vec<f32>>(),
-                    chunk.len(),
-                    &dev,
-                )
-            };
-            let obs = net.batch(&g, &fl)?;
-            let actions = Tensor::from_vec(
-                chunk.iter().map(|&i| d.actions[i]).collect::<Vec<u32>>(),
-                chunk.len(),
-                &dev,
-            )?;
-            let (old_lp, adv, ret, old_v) = (
-                pick_f(d.logprobs)?,
-                pick_f(d.advantages)?,
-                pick_f(d.returns)?,
-                pick_f(d.values)?,
-            );
-            let batch = Minibatch {
-                obs: &obs,
-                actions: &actions,
-                old_logprob: &old_lp,
-                advantages: &adv,
-                returns: &ret,
-                old_values: &old_v,
-                logit_bias: None,
-                int: None,
-            };
-            let t0 = Instant::now();
-            let (l, s) = loss(net, &batch, cfg)?;
-            let t1 = Instant::now();
-            let (grads, _) = clipped_grads(net, &l, cfg.max_grad_norm)?;
-            let t2 = Instant::now();
-            adam_candle(adam, net, &grads, lr)?;
-            let t3 = Instant::now();
-            times[0] += (t1 - t0).as_secs_f64() * 1e3;
-            times[1] += (t2 - t1).as_secs_f64() * 1e3;
-            times[2] += (t3 - t2).as_secs_f64() * 1e3;
-            sum.policy_loss += s.policy_loss;
-            sum.value_loss += s.value_loss;
-            sum.entropy += s.entropy;
-            sum.approx_kl += s.approx_kl;
-            sum.clip_frac += s.clip_frac;
-            count += 1;
-        }
-    }
-    if std::env::var("PHASES").is_ok_and(|v| v == "1") {
-        println!(
-            "candle update {:.3} ms: forward+loss {:.3} ms, backward+clip {:.3} ms, adam {:.3} ms",
-            t_start.elapsed().as_secs_f64() * 1e3,
-            times[0],
-            times[1],
-            times[2]
-        );
-    }
-    let k = count.max(1) as f32;
-    Ok(Stats {
-        policy_loss: sum.policy_loss / k,
-        value_loss: sum.value_loss / k,
-        entropy: sum.entropy / k,
-        approx_kl: sum.approx_kl / k,
-        clip_frac: sum.clip_frac / k,
-    })
 }
