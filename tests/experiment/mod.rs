@@ -163,7 +163,10 @@ fn bad_experiments_are_refused_before_any_run() {
             "unknown arm 'nope'",
         ),
         (vec!["experiment", "room", "--seeds", "0"], "--seeds"),
-        (vec!["experiment", "room", "--beta", "-1"], "--beta -1"),
+        (
+            vec!["experiment", "room", "--beta", "-1"],
+            "beta -1 must be",
+        ),
         (
             vec!["experiment", "room", "--threshold", "1.5"],
             "--threshold",
