@@ -2,47 +2,19 @@
 //! the stop flag that SIGINT/SIGTERM raise, dying with the parent, starting a child and
 //! waiting for its `ready` line, stopping children, and the machine's cores.
 //!
-//! Every fulcrum process has exactly one stop flag, [`STOP`]: signal handlers raise it,
-//! loops poll it between phases and leave cleanly (writing what they must first).
+//! Every fulcrum process has exactly one stop flag, [`STOP`] (`fulcrum_shared::stop`):
+//! signal handlers raise it, loops poll it between phases and leave cleanly (writing
+//! what they must first).
 
 use std::io::{BufRead, BufReader};
 use std::os::unix::process::ExitStatusExt;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::sync::atomic::{AtomicBool, AtomicI32, Ordering};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver};
 
-/// Set by SIGINT / SIGTERM (and by [`die_with_parent`] when the parent is already gone).
-pub static STOP: AtomicBool = AtomicBool::new(false);
-/// Which signal raised [`STOP`] (0 = none: it was raised by the process itself).
-static SIGNAL: AtomicI32 = AtomicI32::new(0);
-
-/// Whether the stop flag is up.
-pub fn stopping() -> bool {
-    STOP.load(Ordering::Relaxed)
-}
-
-/// Whether a signal (rather than the process itself) raised the stop flag.
-pub fn signalled() -> bool {
-    SIGNAL.load(Ordering::Relaxed) != 0
-}
-
-/// The write end of the pipe [`stop_events`] reads (-1 = none yet).
-static STOP_PIPE: AtomicI32 = AtomicI32::new(-1);
-
-extern "C" fn on_signal(sig: libc::c_int) {
-    SIGNAL.store(sig, Ordering::Relaxed);
-    STOP.store(true, Ordering::Relaxed);
-    let fd = STOP_PIPE.load(Ordering::Relaxed);
-    if fd >= 0 {
-        // SAFETY: write(2) is async-signal-safe; a full pipe only drops the byte.
-        unsafe {
-            libc::write(fd, [1u8].as_ptr().cast(), 1);
-        }
-    }
-}
+pub use fulcrum_shared::stop::{request_stop, signalled, stopping, STOP};
 
 /// A channel that receives one message when a signal raises the stop flag (and at
 /// once if it is already up): the stop flag as an event a `select!` can wait on.
@@ -66,7 +38,7 @@ pub fn stop_events() -> Result<Receiver<()>> {
     unsafe {
         libc::fcntl(read, libc::F_SETFL, 0);
     }
-    let old = STOP_PIPE.swap(write, Ordering::SeqCst);
+    let old = fulcrum_shared::stop::set_wake_fd(write);
     if old >= 0 {
         // SAFETY: the previous write end is ours and no longer published.
         unsafe {
@@ -113,17 +85,7 @@ pub fn exit_event(child: &Child) -> Receiver<()> {
 
 /// SIGINT and SIGTERM raise [`STOP`].
 pub fn install_signal_handlers() {
-    // SAFETY: the handler only stores to atomics, which is async-signal-safe.
-    unsafe {
-        libc::signal(
-            libc::SIGINT,
-            on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t,
-        );
-        libc::signal(
-            libc::SIGTERM,
-            on_signal as extern "C" fn(libc::c_int) as libc::sighandler_t,
-        );
-    }
+    fulcrum_shared::stop::install();
 }
 
 /// A child: stop when the process `parent` dies (and if it already has, stop now).
@@ -132,7 +94,7 @@ pub fn die_with_parent(parent: u32) {
     unsafe {
         libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
         if libc::getppid() as u32 != parent {
-            STOP.store(true, Ordering::Relaxed);
+            request_stop();
         }
     }
 }

@@ -40,6 +40,8 @@ pub mod parse;
 pub mod ppo_config;
 /// The packed state.
 pub mod state;
+/// The one stop flag of a process: SIGINT, SIGTERM or a request from within.
+pub mod stop;
 /// Trajectory chunks and policy weights in shared memory.
 pub mod traj;
 /// The world, the rule table and the exact dynamics.
