@@ -52,8 +52,8 @@
 //! [`read`]: crate::checkpoint::read
 
 use std::collections::{BTreeMap, HashMap};
-use std::fs::{self, File, OpenOptions};
-use std::io::{self, Write};
+use std::fs;
+use std::io;
 use std::path::{Path, PathBuf};
 
 use safetensors::tensor::{Dtype, TensorView, View};
@@ -398,40 +398,8 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
     };
     let mut tmp_name = name.to_os_string();
     tmp_name.push(".tmp");
-    let tmp = dir.join(tmp_name);
-    let mut file = OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(&tmp)
-        .map_err(|e| {
-            fail(
-                format!("cannot create the temporary file {}", tmp.display()),
-                e,
-            )
-        })?;
-    let written = file
-        .write_all(bytes)
-        .map_err(|e| (format!("cannot write {}", tmp.display()), e))
-        .and_then(|()| {
-            file.sync_all()
-                .map_err(|e| (format!("cannot fsync {}", tmp.display()), e))
-        })
-        .and_then(|()| {
-            drop(file);
-            fs::rename(&tmp, path)
-                .map_err(|e| (format!("cannot rename {} over it", tmp.display()), e))
-        });
-    if let Err((what, e)) = written {
-        let _ = fs::remove_file(&tmp);
-        return Err(fail(what, e));
-    }
-    // Make the rename durable. Opening a directory is not possible everywhere (Windows).
-    if let Ok(d) = File::open(dir) {
-        d.sync_all()
-            .map_err(|e| fail(format!("cannot fsync the directory {}", dir.display()), e))?;
-    }
-    Ok(())
+    crate::fsio::replace_via(path, &dir.join(tmp_name), bytes, false)
+        .map_err(|(what, source)| fail(what, source))
 }
 
 /// A validated tensor of the file, as f32 values.

@@ -50,21 +50,55 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
     let tmp = dir.join(tmp_name);
-    let mut file = OpenOptions::new().write(true).create_new(true).open(&tmp)?;
-    let result = file
+    replace_via(path, &tmp, bytes, true).map_err(|(_, e)| e)
+}
+
+/// The one way fulcrum replaces a file: write `bytes` to `tmp` (a path in the same
+/// directory as `path`; `create_new` refuses one that exists, otherwise it is
+/// truncated), fsync it, rename it over `path`, fsync the directory. On an error the
+/// temporary file is removed (when it was ours) and the error says which step failed.
+pub fn replace_via(
+    path: &Path,
+    tmp: &Path,
+    bytes: &[u8],
+    create_new: bool,
+) -> Result<(), (String, io::Error)> {
+    let mut file = OpenOptions::new()
+        .write(true)
+        .create(true)
+        .create_new(create_new)
+        .truncate(!create_new)
+        .open(tmp)
+        .map_err(|e| {
+            (
+                format!("cannot create the temporary file {}", tmp.display()),
+                e,
+            )
+        })?;
+    let written = file
         .write_all(bytes)
-        .and_then(|()| file.sync_all())
+        .map_err(|e| (format!("cannot write {}", tmp.display()), e))
+        .and_then(|()| {
+            file.sync_all()
+                .map_err(|e| (format!("cannot fsync {}", tmp.display()), e))
+        })
         .and_then(|()| {
             drop(file);
-            fs::rename(&tmp, path)
+            fs::rename(tmp, path)
+                .map_err(|e| (format!("cannot rename {} over it", tmp.display()), e))
         });
-    if let Err(e) = result {
-        let _ = fs::remove_file(&tmp);
+    if let Err(e) = written {
+        let _ = fs::remove_file(tmp);
         return Err(e);
     }
     // Make the rename itself durable; not every platform can open a directory.
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
     if let Ok(d) = File::open(dir) {
-        let _ = d.sync_all();
+        d.sync_all()
+            .map_err(|e| (format!("cannot fsync the directory {}", dir.display()), e))?;
     }
     Ok(())
 }
