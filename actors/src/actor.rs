@@ -42,11 +42,12 @@ use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use crate::error::{ipc, ActorError};
+use crate::error::ActorError;
 use crate::policy::Policy;
 use crate::resume::resume_records;
 use crate::service::{connect, pump};
 use crate::weights::WeightsIn;
+use fulcrum_shared::IpcError;
 
 /// Who this actor is.
 #[derive(Debug, Clone, Copy)]
@@ -110,9 +111,9 @@ impl Ports {
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| ipc("node")(&e))?;
+            .map_err(|e| IpcError::new("node", e))?;
         let names = TrainNames::new(namespace);
-        let tsvc = traj::trajectory_service(&node, &names).map_err(ActorError::Ipc)?;
+        let tsvc = traj::trajectory_service(&node, &names).map_err(ActorError::from)?;
         let publisher = tsvc
             .publisher_builder()
             .initial_max_slice_len(bytes)
@@ -131,22 +132,23 @@ impl Ports {
                 BackpressureAction::Retry
             })
             .create()
-            .map_err(|e| ipc("publisher")(&e))?;
-        let twake = traj::wake_service(&node, &names.trajectories_wake).map_err(ActorError::Ipc)?;
+            .map_err(|e| IpcError::new("publisher", e))?;
+        let twake =
+            traj::wake_service(&node, &names.trajectories_wake).map_err(ActorError::from)?;
         let notifier = twake
             .notifier_builder()
             .create()
-            .map_err(|e| ipc("notifier")(&e))?;
-        let psvc = traj::policy_service(&node, &names).map_err(ActorError::Ipc)?;
+            .map_err(|e| IpcError::new("notifier", e))?;
+        let psvc = traj::policy_service(&node, &names).map_err(ActorError::from)?;
         let sub = psvc
             .subscriber_builder()
             .create()
-            .map_err(|e| ipc("subscriber")(&e))?;
-        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(ActorError::Ipc)?;
+            .map_err(|e| IpcError::new("subscriber", e))?;
+        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(ActorError::from)?;
         let listener = pwake
             .listener_builder()
             .create()
-            .map_err(|e| ipc("listener")(&e))?;
+            .map_err(|e| IpcError::new("listener", e))?;
 
         let ports = Ports {
             _policy_wake: pwake,
@@ -407,7 +409,7 @@ impl<'a> Actor<'a> {
             .ports
             .publisher
             .loan_slice(self.layout.bytes())
-            .map_err(|e| ipc("loan chunk")(&e))?;
+            .map_err(|e| IpcError::new("loan chunk", e))?;
         let mut h = ChunkHeader {
             run: self.run,
             world_hash: self.world_hash,
@@ -439,7 +441,7 @@ impl<'a> Actor<'a> {
                 tracing::debug!(?e, "chunk not sent: stopping");
                 return Ok(false);
             }
-            Err(e) => return Err(ipc("send chunk")(&e)),
+            Err(e) => return Err(IpcError::new("send chunk", e).into()),
         }
         let _ = self.ports.notifier.notify();
         self.seq += 1;

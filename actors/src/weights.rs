@@ -8,8 +8,9 @@ use fulcrum_shared::traj::WeightsSubscriber;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 
-use crate::error::{ipc, ActorError};
+use crate::error::ActorError;
 use crate::policy::Policy;
+use fulcrum_shared::IpcError;
 
 /// Where new weights come from.
 pub(crate) struct WeightsIn {
@@ -31,7 +32,11 @@ impl WeightsIn {
     ) -> Result<Option<u64>, ActorError> {
         loop {
             let mut newest: Option<u64> = None;
-            while let Some(s) = self.sub.receive().map_err(|e| ipc("receive weights")(&e))? {
+            while let Some(s) = self
+                .sub
+                .receive()
+                .map_err(|e| IpcError::new("receive weights", e))?
+            {
                 let h = *s.user_header();
                 if h.run != self.run || h.world_hash != self.world_hash {
                     tracing::warn!("ignored weights of another run");

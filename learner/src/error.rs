@@ -15,11 +15,6 @@ pub enum LearnerError {
     #[error("candle: {0}")]
     Candle(#[from] candle_core::Error),
     /// iceoryx2 failed.
-    #[error("shared memory: {0}")]
-    Ipc(String),
-}
-
-/// An iceoryx2 error of the step `what`.
-pub(crate) fn ipc(what: &str) -> impl Fn(&dyn std::fmt::Debug) -> LearnerError + '_ {
-    move |e| LearnerError::Ipc(format!("{what}: {e:?}"))
+    #[error(transparent)]
+    Ipc(#[from] fulcrum_shared::IpcError),
 }

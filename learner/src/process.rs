@@ -42,12 +42,13 @@ use crate::checkpoint::{self, Extra};
 use crate::counters::Counters;
 use crate::csv::trim_rows;
 use crate::diagnostics::Stats;
-use crate::error::{ipc, LearnerError};
+use crate::error::LearnerError;
 use crate::hosts::{HostsLog, HOSTS_COLUMNS};
 use crate::local::update;
 use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
 use crate::net::Net;
 use crate::paths::RunPaths;
+use fulcrum_shared::IpcError;
 
 /// Why the learner stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -91,31 +92,31 @@ impl Ports {
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
-            .map_err(|e| ipc("node")(&e))?;
+            .map_err(|e| IpcError::new("node", e))?;
         let names = TrainNames::new(namespace);
-        let tsvc = traj::trajectory_service(&node, &names).map_err(LearnerError::Ipc)?;
+        let tsvc = traj::trajectory_service(&node, &names).map_err(LearnerError::from)?;
         let sub = tsvc
             .subscriber_builder()
             .create()
-            .map_err(|e| ipc("subscriber")(&e))?;
+            .map_err(|e| IpcError::new("subscriber", e))?;
         let twake =
-            traj::wake_service(&node, &names.trajectories_wake).map_err(LearnerError::Ipc)?;
+            traj::wake_service(&node, &names.trajectories_wake).map_err(LearnerError::from)?;
         let listener = twake
             .listener_builder()
             .create()
-            .map_err(|e| ipc("listener")(&e))?;
-        let psvc = traj::policy_service(&node, &names).map_err(LearnerError::Ipc)?;
+            .map_err(|e| IpcError::new("listener", e))?;
+        let psvc = traj::policy_service(&node, &names).map_err(LearnerError::from)?;
         let publisher = psvc
             .publisher_builder()
             .initial_max_slice_len(weights)
             .max_loaned_samples(2)
             .create()
-            .map_err(|e| ipc("publisher")(&e))?;
-        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(LearnerError::Ipc)?;
+            .map_err(|e| IpcError::new("publisher", e))?;
+        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(LearnerError::from)?;
         let notifier = pwake
             .notifier_builder()
             .create()
-            .map_err(|e| ipc("notifier")(&e))?;
+            .map_err(|e| IpcError::new("notifier", e))?;
         Ok(Ports {
             notifier,
             _policy_wake: pwake,
@@ -141,7 +142,7 @@ impl Ports {
         let mut s = self
             .publisher
             .loan_slice_uninit(flat.len())
-            .map_err(|e| ipc("loan weights")(&e))?;
+            .map_err(|e| IpcError::new("loan weights", e))?;
         *s.user_header_mut() = WeightsHeader {
             run,
             world_hash,
@@ -149,7 +150,7 @@ impl Ports {
             len: flat.len() as u64,
         };
         let s = s.write_from_slice(&flat);
-        s.send().map_err(|e| ipc("send weights")(&e))?;
+        s.send().map_err(|e| IpcError::new("send weights", e))?;
         let _ = self.notifier.notify();
         Ok(())
     }
@@ -374,7 +375,12 @@ impl<'a> Learner<'a> {
     fn receive(&mut self, version: u64, batch: &mut Vec<Chunk>) -> Result<bool, LearnerError> {
         let n_actions = self.world.num_actions();
         let mut got = false;
-        while let Some(sample) = self.ports.sub.receive().map_err(|e| ipc("receive")(&e))? {
+        while let Some(sample) = self
+            .ports
+            .sub
+            .receive()
+            .map_err(|e| IpcError::new("receive", e))?
+        {
             got = true;
             let h = *sample.user_header();
             let payload: &[u8] = sample.payload();

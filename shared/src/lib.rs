@@ -28,6 +28,8 @@ pub mod generate;
 pub mod hash;
 /// Intrinsic reward forms (additive, potential-based shaping, count novelty).
 pub mod intrinsic;
+/// An iceoryx2 failure, typed.
+pub mod ipc_error;
 /// The network's weight layout, which the learner and the actors share.
 pub mod layout;
 /// Per-mode action masking from the observation's flags.
@@ -49,6 +51,7 @@ pub mod world;
 
 pub use describe::DescribeError;
 pub use env::{Episode, ObsSpec, Outcome};
+pub use ipc_error::IpcError;
 pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
 pub use state::{Mode, State, BOULDER_DESTROYED};
 pub use world::{

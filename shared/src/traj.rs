@@ -48,6 +48,7 @@ use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
 use crate::env::Episode;
+use crate::ipc_error::IpcError;
 use crate::state::State;
 
 /// Most actor processes of one run.
@@ -536,15 +537,15 @@ pub type WeightsPublisher = Publisher<ipc::Service, [f32], WeightsHeader>;
 /// A weights subscriber.
 pub type WeightsSubscriber = Subscriber<ipc::Service, [f32], WeightsHeader>;
 
-fn name(s: &str) -> Result<ServiceName, String> {
-    ServiceName::new(s).map_err(|e| format!("service name {s}: {e:?}"))
+fn name(s: &str) -> Result<ServiceName, IpcError> {
+    ServiceName::new(s).map_err(|e| IpcError::new(format!("service name {s}"), e))
 }
 
 /// The trajectory service, built the same way by every process (the first fixes QoS).
 pub fn trajectory_service(
     node: &Node<ipc::Service>,
     n: &TrainNames,
-) -> Result<TrajFactory, String> {
+) -> Result<TrajFactory, IpcError> {
     node.service_builder(&name(&n.trajectories)?)
         .publish_subscribe::<[u8]>()
         .user_header::<ChunkHeader>()
@@ -556,11 +557,14 @@ pub fn trajectory_service(
         .history_size(0)
         .enable_safe_overflow(false)
         .open_or_create()
-        .map_err(|e| format!("trajectory service: {e:?}"))
+        .map_err(|e| IpcError::new("trajectory service", e))
 }
 
 /// The weights service (history 1: late subscribers get the current weights).
-pub fn policy_service(node: &Node<ipc::Service>, n: &TrainNames) -> Result<PolicyFactory, String> {
+pub fn policy_service(
+    node: &Node<ipc::Service>,
+    n: &TrainNames,
+) -> Result<PolicyFactory, IpcError> {
     node.service_builder(&name(&n.policy)?)
         .publish_subscribe::<[f32]>()
         .user_header::<WeightsHeader>()
@@ -572,21 +576,21 @@ pub fn policy_service(node: &Node<ipc::Service>, n: &TrainNames) -> Result<Polic
         .history_size(1)
         .enable_safe_overflow(true)
         .open_or_create()
-        .map_err(|e| format!("policy service: {e:?}"))
+        .map_err(|e| IpcError::new("policy service", e))
 }
 
 /// An event service for wake-ups.
 pub fn wake_service(
     node: &Node<ipc::Service>,
     service: &str,
-) -> Result<EventFactory<ipc::Service>, String> {
+) -> Result<EventFactory<ipc::Service>, IpcError> {
     node.service_builder(&name(service)?)
         .event()
         .max_listeners(MAX_ACTORS + 4)
         .max_notifiers(MAX_ACTORS + 4)
         .max_nodes(MAX_ACTORS + 8)
         .open_or_create()
-        .map_err(|e| format!("event service {service}: {e:?}"))
+        .map_err(|e| IpcError::new(format!("event service {service}"), e))
 }
 
 #[cfg(test)]
