@@ -29,6 +29,32 @@ pub(crate) fn save_png(path: &Path, rgb: &[u8], width: u32, height: u32) -> Resu
     })
 }
 
+/// Draws a `width x height` picture: `draw` fills the RGB buffer with shapes and
+/// collects the text, which is rendered on top with `font`; the PNG is written to
+/// `path` atomically.
+pub(crate) fn render_png(
+    path: &Path,
+    font: &FontRef<'static>,
+    (width, height): (u32, u32),
+    draw: impl FnOnce(&mut [u8], &mut Vec<Label>) -> Result<(), String>,
+) -> Result<(), PlotError> {
+    let mut buf = vec![255u8; width as usize * height as usize * 3];
+    let mut labels = Vec::new();
+    draw(&mut buf, &mut labels).map_err(|message| PlotError::Draw {
+        path: path.to_path_buf(),
+        message,
+    })?;
+    let mut canvas = Canvas {
+        buf: &mut buf,
+        width,
+        height,
+    };
+    for label in &labels {
+        canvas.text(font, label);
+    }
+    save_png(path, &buf, width, height)
+}
+
 pub(crate) struct Canvas<'b> {
     pub(crate) buf: &'b mut [u8],
     pub(crate) width: u32,

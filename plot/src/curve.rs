@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::canvas::{draw_err, line, save_png, Area, Canvas};
+use crate::canvas::{draw_err, line, render_png, Area};
 use crate::error::PlotError;
 use crate::style::{
     rgb, Rgb, AXIS, CATEGORY_LINE, GRID, LABEL_SIZE, TICK_SIZE, TITLE_SIZE, VALUE_LINE,
@@ -203,24 +203,9 @@ pub fn learning_curve_png(
 ) -> Result<(), PlotError> {
     let font = fonts(path)?;
     let layout = CurveLayout::new(points, title, font);
-    let (width, height) = (layout.width, layout.height);
-    let mut buf = vec![255u8; width as usize * height as usize * 3];
-    let mut labels = Vec::new();
-    draw_curve(&mut buf, &layout, title, points, &mut labels).map_err(|message| {
-        PlotError::Draw {
-            path: path.to_path_buf(),
-            message,
-        }
-    })?;
-    let mut canvas = Canvas {
-        buf: &mut buf,
-        width,
-        height,
-    };
-    for label in &labels {
-        canvas.text(font, label);
-    }
-    save_png(path, &buf, width, height)
+    render_png(path, font, (layout.width, layout.height), |buf, labels| {
+        draw_curve(buf, &layout, title, points, labels)
+    })
 }
 
 /// One series in a panel: a line through its finite points, markers when they are few,

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::canvas::{draw_err, fill_rect, line, save_png, Canvas};
+use crate::canvas::{draw_err, fill_rect, line, render_png};
 use crate::error::PlotError;
 use crate::style::{
     text_on, viridis, AXIS, LABEL_SIZE, MAX_GRID_SIDE, MAX_IMAGE_SIDE, NO_VALUE, ROCK, ROCK_EDGE,
@@ -40,22 +40,9 @@ pub struct Heatmap<'a> {
 pub fn heatmap_png(path: &Path, h: &Heatmap) -> Result<(), PlotError> {
     let font = fonts(path)?;
     let layout = HeatmapLayout::new(path, h, font)?;
-    let (width, height) = (layout.width, layout.height);
-    let mut buf = vec![255u8; width as usize * height as usize * 3];
-    let mut labels = Vec::new();
-    draw_heatmap(&mut buf, &layout, h, &mut labels).map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })?;
-    let mut canvas = Canvas {
-        buf: &mut buf,
-        width,
-        height,
-    };
-    for label in &labels {
-        canvas.text(font, label);
-    }
-    save_png(path, &buf, width, height)
+    render_png(path, font, (layout.width, layout.height), |buf, labels| {
+        draw_heatmap(buf, &layout, h, labels)
+    })
 }
 
 /// Where everything of a heatmap goes, in pixels.

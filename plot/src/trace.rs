@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use crate::canvas::{draw_err, line, save_png, Area, Canvas};
+use crate::canvas::{draw_err, line, render_png, Area};
 use crate::error::PlotError;
 use crate::style::{
     rgb, AXIS, CATEGORY_LINE, GRID, LABEL_SIZE, MAX_IMAGE_SIDE, MAX_TRACE_STEPS, TICK_SIZE,
@@ -38,22 +38,9 @@ pub struct Trace<'a> {
 pub fn trace_png(path: &Path, t: &Trace) -> Result<(), PlotError> {
     let font = fonts(path)?;
     let layout = TraceLayout::new(path, t, font)?;
-    let (width, height) = (layout.width, layout.height);
-    let mut buf = vec![255u8; width as usize * height as usize * 3];
-    let mut labels = Vec::new();
-    draw_trace(&mut buf, &layout, t, &mut labels).map_err(|message| PlotError::Draw {
-        path: path.to_path_buf(),
-        message,
-    })?;
-    let mut canvas = Canvas {
-        buf: &mut buf,
-        width,
-        height,
-    };
-    for label in &labels {
-        canvas.text(font, label);
-    }
-    save_png(path, &buf, width, height)
+    render_png(path, font, (layout.width, layout.height), |buf, labels| {
+        draw_trace(buf, &layout, t, labels)
+    })
 }
 
 pub(crate) const FEW_STEPS: usize = 40;
