@@ -6,6 +6,10 @@
 //! first. A process that waits on events rather than polling gets a byte on a pipe
 //! ([`set_wake_fd`]) when a signal arrives.
 //!
+//! [`install`]: crate::stop::install
+//! [`request_stop`]: crate::stop::request_stop
+//! [`set_wake_fd`]: crate::stop::set_wake_fd
+//!
 //! The handler keeps any handler installed before it (iceoryx2 installs its own for the
 //! service's wait set) and calls it after recording the signal: iceoryx2 keeps only the
 //! last signal in one global that some of its calls reset, so a Ctrl-C seen only there
