@@ -14,12 +14,14 @@ use fulcrum_run::process::STOP;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::msg;
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
+use fulcrum_shared::IpcError;
 use fulcrum_shared::World;
 use iceoryx2::prelude::*;
 use zenoh::handlers::RingChannel;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;
 
+use crate::error::ZenohError;
 use crate::forward::Forwarder;
 use crate::hello::{join, valid_host_name, write_atomic, Hello, Joined};
 use crate::session::{locator, node, open_session, ZenohOptions};
@@ -76,7 +78,7 @@ pub fn connect(
                 service::request_stop();
             })
             .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?
+            .map_err(|e| ZenohError::new("subscriber", e))?
     };
     let threads = vec![
         chunks_out(&session, &run, name, &local_ns, &stop, &stats)?,
@@ -124,7 +126,7 @@ pub fn connect(
 /// The world and run the learner's host sent, checked against what this host wants.
 fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
     let world = fulcrum_shared::parse_world(&hello.world_source, &hello.world_name)
-        .map_err(|e| anyhow::anyhow!("the run's world does not parse here: {e}"))?;
+        .context("the run's world does not parse here")?;
     let hash = format!("{:016x}", world.content_hash());
     if hash != hello.world_hash {
         anyhow::bail!(
@@ -160,8 +162,8 @@ fn write_run(dir: &Path, hello: &Hello) -> Result<RunConfig> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let world_path = dir.join("world.toml");
     write_atomic(&world_path, hello.world_source.as_bytes())?;
-    let mut cfg: RunConfig = toml::from_str(&hello.config)
-        .map_err(|e| anyhow::anyhow!("the run's config.toml does not parse here: {e}"))?;
+    let mut cfg: RunConfig =
+        toml::from_str(&hello.config).context("the run's config.toml does not parse here")?;
     cfg.world = world_path.display().to_string();
     cfg.remote = false;
     write_atomic(&dir.join("config.toml"), cfg.to_toml().as_bytes())?;
@@ -182,22 +184,21 @@ fn chunks_out(
         .congestion_control(CongestionControl::Block)
         .priority(Priority::Data)
         .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
+        .map_err(|e| ZenohError::new("publisher", e))?;
     let (ns, stop, stats) = (local_ns.to_string(), stop.clone(), stats.clone());
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let tsvc = traj::trajectory_service(&node, &names)?;
         let sub = tsvc
             .subscriber_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("chunk subscriber: {e:?}"))?;
-        let wake =
-            traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
+            .map_err(|e| IpcError::new("chunk subscriber", e))?;
+        let wake = traj::wake_service(&node, &names.trajectories_wake)?;
         let listener = wake
             .listener_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
+            .map_err(|e| IpcError::new("listener", e))?;
         let mut buf: Vec<u8> = Vec::new();
         while !stop.load(Ordering::Relaxed) {
             let mut got = false;
@@ -222,7 +223,7 @@ fn chunks_out(
                 publisher
                     .put(buf.clone())
                     .wait()
-                    .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
+                    .map_err(|e| ZenohError::new("put", e))?;
                 stats.chunks.fetch_add(1, Ordering::Relaxed);
                 stats
                     .chunk_bytes
@@ -250,24 +251,24 @@ fn weights_in(
         .declare_subscriber(format!("fulcrum/{run}/policy"))
         .with(RingChannel::new(1))
         .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
+        .map_err(|e| ZenohError::new("subscriber", e))?;
     let (ns, stop, stats) = (local_ns.to_string(), stop.clone(), stats.clone());
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let psvc = traj::policy_service(&node, &names)?;
         let publisher = psvc
             .publisher_builder()
             .initial_max_slice_len(1 << 12)
             .allocation_strategy(AllocationStrategy::PowerOfTwo)
             .max_loaned_samples(2)
             .create()
-            .map_err(|e| anyhow::anyhow!("weights publisher: {e:?}"))?;
-        let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
+            .map_err(|e| IpcError::new("weights publisher", e))?;
+        let wake = traj::wake_service(&node, &names.policy_wake)?;
         let notifier = wake
             .notifier_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
+            .map_err(|e| IpcError::new("notifier", e))?;
         let mut floats: Vec<f32> = Vec::new();
         while !stop.load(Ordering::Relaxed) {
             let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
@@ -289,11 +290,10 @@ fn weights_in(
             );
             let mut s = publisher
                 .loan_slice_uninit(floats.len())
-                .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
+                .map_err(|e| IpcError::new("loan", e))?;
             *s.user_header_mut() = h;
             let s = s.write_from_slice(&floats);
-            s.send()
-                .map_err(|e| anyhow::anyhow!("send weights: {e:?}"))?;
+            s.send().map_err(|e| IpcError::new("send weights", e))?;
             let _ = notifier.notify();
             stats.weights.fetch_add(1, Ordering::Relaxed);
         }

@@ -13,6 +13,8 @@ use fulcrum_shared::traj::HOST_STRIDE;
 use serde::{Deserialize, Serialize};
 use zenoh::Wait;
 
+use crate::error::ZenohError;
+
 /// What a joining host learns (the reply to `fulcrum/hello`), as TOML.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Hello {
@@ -122,7 +124,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
             ))
             .timeout(Duration::from_secs(2))
             .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh get: {e}"))?;
+            .map_err(|e| ZenohError::new("get", e))?;
         if let Ok(reply) = replies.recv() {
             match reply.result() {
                 Ok(sample) => {
@@ -131,11 +133,8 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
                         .try_to_string()
                         .unwrap_or_default()
                         .to_string();
-                    return toml::from_str(&text).map_err(|e| {
-                        anyhow::anyhow!(
-                            "the learner's host sent a join reply that does not parse: {e}"
-                        )
-                    });
+                    return toml::from_str(&text)
+                        .context("the learner's host sent a join reply that does not parse");
                 }
                 Err(e) => {
                     let why = e.payload().try_to_string().unwrap_or_default().to_string();

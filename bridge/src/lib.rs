@@ -37,8 +37,10 @@
 //! | [`mod@connect`] | an actor host's side |
 //! | [`forward`] | an actor host's empowerment service |
 //! | [`stats`] | counters logged when a bridge stops |
+//! | [`error`] | zenoh failures, typed |
 
 pub mod connect;
+pub mod error;
 pub mod forward;
 pub mod hello;
 pub mod listen;
@@ -46,6 +48,7 @@ pub mod session;
 pub mod stats;
 
 pub use connect::{connect, Want};
+pub use error::ZenohError;
 pub use forward::Forwarder;
 pub use hello::{actor_id, default_dir, Hello, Joined};
 pub use listen::{listen, serve_lookups};

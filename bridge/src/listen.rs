@@ -15,6 +15,7 @@ use fulcrum_run::process::STOP;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
+use fulcrum_shared::IpcError;
 use fulcrum_shared::World;
 use iceoryx2::port::BackpressureAction;
 use iceoryx2::prelude::*;
@@ -22,6 +23,7 @@ use zenoh::handlers::FifoChannel;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;
 
+use crate::error::ZenohError;
 use crate::hello::{read_hosts, valid_host_name, write_hosts, Hello};
 use crate::session::{locator, node, open_session, ZenohOptions};
 use crate::stats::BridgeStats;
@@ -48,7 +50,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
             .declare_queryable(format!("fulcrum/{ns}/empowerment"))
             .with(FifoChannel::new(256))
             .wait()
-            .map_err(|e| anyhow::anyhow!("zenoh queryable: {e}"))?;
+            .map_err(|e| ZenohError::new("queryable", e))?;
         let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
         threads.push(std::thread::spawn(move || -> Result<()> {
             serve_lookups(&q, &ns, &world, &stop, &stats);
@@ -131,7 +133,7 @@ fn answer_hellos(
             let _ = q.reply(q.key_expr().clone(), text).wait();
         })
         .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh queryable: {e}"))
+        .map_err(|e| ZenohError::new("queryable", e).into())
 }
 
 /// Chunks from other hosts: zenoh -> the learner's trajectory service, on a thread.
@@ -145,12 +147,12 @@ fn chunks_in(
         .declare_subscriber(format!("fulcrum/{ns}/chunks/*"))
         .with(FifoChannel::new(4))
         .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh subscriber: {e}"))?;
+        .map_err(|e| ZenohError::new("subscriber", e))?;
     let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let tsvc = traj::trajectory_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let tsvc = traj::trajectory_service(&node, &names)?;
         let s2 = stop.clone();
         let publisher = tsvc
             .publisher_builder()
@@ -167,13 +169,12 @@ fn chunks_in(
                 BackpressureAction::Retry
             })
             .create()
-            .map_err(|e| anyhow::anyhow!("chunk publisher: {e:?}"))?;
-        let wake =
-            traj::wake_service(&node, &names.trajectories_wake).map_err(anyhow::Error::msg)?;
+            .map_err(|e| IpcError::new("chunk publisher", e))?;
+        let wake = traj::wake_service(&node, &names.trajectories_wake)?;
         let notifier = wake
             .notifier_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("notifier: {e:?}"))?;
+            .map_err(|e| IpcError::new("notifier", e))?;
         while !stop.load(Ordering::Relaxed) {
             let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
                 continue;
@@ -194,7 +195,7 @@ fn chunks_in(
             }
             let mut s = publisher
                 .loan_slice_uninit(body.len())
-                .map_err(|e| anyhow::anyhow!("loan: {e:?}"))?;
+                .map_err(|e| IpcError::new("loan", e))?;
             *s.user_header_mut() = h;
             let s = s.write_from_slice(body);
             if s.send().is_err() {
@@ -222,21 +223,21 @@ fn weights_out(
         .congestion_control(CongestionControl::Block)
         .priority(Priority::DataHigh)
         .wait()
-        .map_err(|e| anyhow::anyhow!("zenoh publisher: {e}"))?;
+        .map_err(|e| ZenohError::new("publisher", e))?;
     let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let psvc = traj::policy_service(&node, &names).map_err(anyhow::Error::msg)?;
+        let psvc = traj::policy_service(&node, &names)?;
         let sub = psvc
             .subscriber_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("weights subscriber: {e:?}"))?;
-        let wake = traj::wake_service(&node, &names.policy_wake).map_err(anyhow::Error::msg)?;
+            .map_err(|e| IpcError::new("weights subscriber", e))?;
+        let wake = traj::wake_service(&node, &names.policy_wake)?;
         let listener = wake
             .listener_builder()
             .create()
-            .map_err(|e| anyhow::anyhow!("listener: {e:?}"))?;
+            .map_err(|e| IpcError::new("listener", e))?;
         while !stop.load(Ordering::Relaxed) {
             let _ = listener.timed_wait(|_| {}, Duration::from_millis(100));
             let mut newest: Option<Vec<u8>> = None;
@@ -253,7 +254,7 @@ fn weights_out(
                 publisher
                     .put(w)
                     .wait()
-                    .map_err(|e| anyhow::anyhow!("zenoh put: {e}"))?;
+                    .map_err(|e| ZenohError::new("put", e))?;
                 stats.weights.fetch_add(1, Ordering::Relaxed);
             }
         }

@@ -5,8 +5,11 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use fulcrum_run::bad;
+use fulcrum_shared::IpcError;
 use iceoryx2::prelude::*;
 use zenoh::Wait;
+
+use crate::error::ZenohError;
 
 /// How a bridge's zenoh session behaves.
 #[derive(Debug, Clone)]
@@ -53,7 +56,7 @@ pub fn open_session(z: &ZenohOptions, endpoint: &str, listen: bool) -> Result<ze
     let loc = serde_json::to_string(&[endpoint]).expect("a string list serialises");
     let mut set = |k: &str, v: String| -> Result<()> {
         c.insert_json5(k, &v)
-            .map_err(|e| anyhow::anyhow!("zenoh configuration {k} = {v}: {e}"))
+            .map_err(|e| ZenohError::new(format!("configuration {k} = {v}"), e).into())
     };
     set("mode", "\"peer\"".into())?;
     set("scouting/multicast/enabled", "false".into())?;
@@ -78,15 +81,14 @@ pub fn open_session(z: &ZenohOptions, endpoint: &str, listen: bool) -> Result<ze
     match zenoh::open(c).wait() {
         Ok(s) => Ok(s),
         Err(e) if listen => bad(format!("cannot listen on {endpoint}: {e}")),
-        Err(e) => Err(anyhow::anyhow!(
-            "cannot start zenoh towards {endpoint}: {e}"
-        )),
+        Err(e) => Err(ZenohError::new(format!("a session towards {endpoint}"), e).into()),
     }
 }
 
+/// The bridge's iceoryx2 node (signals are the process's stop flag's business).
 pub fn node() -> Result<Node<ipc::Service>> {
     NodeBuilder::new()
         .signal_handling_mode(SignalHandlingMode::Disabled)
         .create::<ipc::Service>()
-        .map_err(|e| anyhow::anyhow!("iceoryx2 node: {e:?}"))
+        .map_err(|e| IpcError::new("iceoryx2 node", e).into())
 }
