@@ -270,7 +270,7 @@ fn merge(old: Spec, new: Spec, path: &Path) -> Result<Spec> {
     let differs = |what: &str, o: String, n: String| -> Result<()> {
         if o != n {
             return bad(format!(
-                "{} was made with {what} {o}, not {n}: use another --out for a different experiment",
+                "{} was made with {what} {o}, not {n}: a different experiment needs a directory of its own",
                 path.display()
             ));
         }
@@ -278,9 +278,9 @@ fn merge(old: Spec, new: Spec, path: &Path) -> Result<Spec> {
     };
     differs("world hash", old.world_hash.clone(), new.world_hash.clone())?;
     differs("steps", old.steps.to_string(), new.steps.to_string())?;
-    differs("--actors", old.actors.to_string(), new.actors.to_string())?;
+    differs("actors", old.actors.to_string(), new.actors.to_string())?;
     differs(
-        "--envs-per-actor",
+        "worlds per actor",
         old.envs_per_actor.to_string(),
         new.envs_per_actor.to_string(),
     )?;
@@ -294,7 +294,7 @@ fn merge(old: Spec, new: Spec, path: &Path) -> Result<Spec> {
         match arms.iter().find(|a| a.name == arm.name) {
             Some(o) if o.args != arm.args => {
                 return bad(format!(
-                    "{}: arm '{}' was run with '{}', not '{}': use another --out",
+                    "{}: arm '{}' was run with '{}', not '{}': a different experiment needs a directory of its own",
                     path.display(),
                     arm.name,
                     o.args.join(" "),
