@@ -44,8 +44,14 @@ case "${1:-}" in
   exec)
     shift
     [ $# -gt 0 ] || die "exec needs a command"
+    # The program's own directory is bound outside /tmp first: a program that lives
+    # under /tmp (a clone there) would vanish under the new /tmp, and it starts its
+    # children from its own path.
     exec ip netns exec "$NS" unshare --mount --propagation private sh -c \
-      'mount -t tmpfs -o mode=1777 tmpfs /dev/shm && mount -t tmpfs -o mode=1777 tmpfs /tmp && exec "$@"' \
+      'prog=$(readlink -f "$1") && shift &&
+       mkdir -p /run/fulcrum-far-bin && mount --bind "$(dirname "$prog")" /run/fulcrum-far-bin &&
+       mount -t tmpfs -o mode=1777 tmpfs /dev/shm && mount -t tmpfs -o mode=1777 tmpfs /tmp &&
+       exec "/run/fulcrum-far-bin/$(basename "$prog")" "$@"' \
       sh "$@"
     ;;
   cut)

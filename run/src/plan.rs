@@ -180,13 +180,12 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         // A damaged checkpoint is refused here, before any process starts.
         let ckpt = paths.checkpoint();
         if ckpt.exists() {
-            let net =
-                fulcrum_learner::net::Net::new(cfg.shape(&w), cfg.seed, &candle_core::Device::Cpu)?;
-            let mut adam = fulcrum_learner::adam::Adam::new(&net)?;
+            // The whole file (weights, Adam's moments, counters) against the layout.
             const CANNOT: &str =
                 "the run cannot continue from it (start a new run, or restore the file)";
-            let extra = match fulcrum_learner::checkpoint::load(&ckpt, &net, &mut adam) {
-                Ok(x) => x,
+            let params = cfg.shape(&w).params();
+            let extra = match fulcrum_shared::checkpoint::read(&ckpt, &params) {
+                Ok(contents) => contents.extra,
                 Err(e) => return bad(format!("{e}; {CANNOT}")),
             };
             if let Err(e) = cfg.fits_checkpoint(&extra) {

@@ -10,13 +10,10 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
-use candle_core::Device;
 use fulcrum_actors::policy::Policy;
 use fulcrum_empowerment::{Method, ToolSel};
-use fulcrum_learner::adam::Adam;
-use fulcrum_learner::checkpoint;
-use fulcrum_learner::net::Net;
 use fulcrum_learner::paths::RunPaths;
+use fulcrum_shared::checkpoint;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
 use rand::SeedableRng;
@@ -43,12 +40,17 @@ pub fn record(
         ));
     }
     let shape = cfg.shape(w);
-    let net = Net::new(shape, cfg.seed, &Device::Cpu)?;
-    let mut adam = Adam::new(&net)?;
-    checkpoint::load(&ckpt, &net, &mut adam)?;
+    // The weights, checked against the layout, in the layout's order: the flat vector
+    // the policy takes.
+    let contents = checkpoint::read(&ckpt, &shape.params())?;
+    let flat: Vec<f32> = contents
+        .params
+        .into_iter()
+        .flat_map(|p| p.weights)
+        .collect();
     let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
     anyhow::ensure!(
-        policy.set(&net.flat()?),
+        policy.set(&flat),
         "the checkpoint's weights do not fit the network"
     );
 
