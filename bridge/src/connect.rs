@@ -141,7 +141,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         ));
     }
     if let Some(w) = want.world {
-        let mine = fulcrum_run::select::load_world(w)?;
+        let mine = fulcrum_shared::load_world(w)?;
         if mine.content_hash() != world.content_hash() {
             return bad(format!(
                 "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",

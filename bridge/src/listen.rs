@@ -34,7 +34,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
         dir: dir.to_path_buf(),
     };
     let cfg = RunConfig::load(&paths.config()).map_err(fulcrum_run::BadRequest)?;
-    let world = fulcrum_run::select::load_world(&cfg.world)?;
+    let world = fulcrum_shared::load_world(&cfg.world)?;
     let endpoint = locator(addr)?;
     let session = open_session(z, &endpoint, true)?;
     let stats = Arc::new(BridgeStats::default());

@@ -14,8 +14,8 @@ use fulcrum_shared::World;
 
 use crate::error::{bad, BadRequest};
 use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
-use crate::select::load_world;
 use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
+use fulcrum_shared::load_world;
 
 /// What the supervisor tells a child process.
 #[derive(Debug, Clone)]

@@ -19,7 +19,8 @@ use fulcrum_shared::World;
 
 use crate::error::{bad, BadRequest};
 use crate::process::{cores, utc_stamp};
-use crate::select::{load_world, objects_or_default};
+use crate::select::objects_or_default;
+use fulcrum_shared::load_world;
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]

@@ -12,7 +12,7 @@ use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use crossbeam_channel::{after, never, select, Receiver};
+use crossbeam_channel::{after, never, select, Receiver, Sender};
 
 pub use fulcrum_shared::stop::{request_stop, signalled, stopping, STOP};
 
@@ -61,10 +61,9 @@ pub fn stop_events() -> Result<Receiver<()>> {
     Ok(rx)
 }
 
-/// A channel that receives one message when `child` has exited (the child is not
-/// reaped: `try_wait` still gives its status).
-pub fn exit_event(child: &Child) -> Receiver<()> {
-    let (tx, rx) = crossbeam_channel::bounded(1);
+/// Sends `message` on `tx` when `child` has exited, from a thread of its own (the child
+/// is not reaped: `try_wait` still gives its status).
+pub fn send_on_exit<T: Send + 'static>(child: &Child, tx: Sender<T>, message: T) {
     let pid = child.id() as libc::id_t;
     std::thread::spawn(move || {
         loop {
@@ -78,9 +77,8 @@ pub fn exit_event(child: &Child) -> Receiver<()> {
                 break;
             }
         }
-        let _ = tx.send(());
+        let _ = tx.send(message);
     });
-    rx
 }
 
 /// SIGINT and SIGTERM raise [`STOP`].

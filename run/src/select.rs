@@ -1,4 +1,4 @@
-//! Reading what a request names: a world by name or path, an object set, a tool (or
+//! Reading what a request names: an object set, a tool (or
 //! the tool selection of the matrix), an inventory. Each mistake is a
 //! [`BadRequest`](crate::BadRequest) naming what was not understood and what would be.
 
@@ -7,11 +7,6 @@ use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
 use fulcrum_shared::{ObjectSet, ToolChoice, World};
 
 use crate::error::bad;
-
-/// Load a world by name or path.
-pub fn load_world(name: &str) -> Result<World> {
-    Ok(fulcrum_shared::load_world(name)?)
-}
 
 /// Enumerate a world's state space with the default limits.
 pub fn engine(world: &World) -> Result<Engine<'_>> {

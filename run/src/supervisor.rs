@@ -30,7 +30,7 @@ use fulcrum_shared::config::RunConfig;
 
 use crate::error::bad;
 use crate::process::{
-    cores, describe_status, exit_event, hostname, signal, spawn_until_ready, stop_children,
+    cores, describe_status, hostname, send_on_exit, signal, spawn_until_ready, stop_children,
     stop_events, Ready,
 };
 use crate::progress::Progress;
@@ -150,13 +150,7 @@ impl Supervisor {
 
     /// Tells the loop when `child` exits.
     fn watch(&self, child: &Child, who: Who) {
-        let ev = exit_event(child);
-        let tx = self.exits_tx.clone();
-        std::thread::spawn(move || {
-            if ev.recv().is_ok() {
-                let _ = tx.send(who);
-            }
-        });
+        send_on_exit(child, self.exits_tx.clone(), who);
     }
 
     /// The empowerment service; returns once its table is built (or the run stops).

@@ -9,10 +9,9 @@ use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
-use fulcrum_run::select::{
-    engine, holding_mask, load_world as world, object_set, objects_or_default, tool_sel,
-};
+use fulcrum_run::select::{engine, holding_mask, object_set, objects_or_default, tool_sel};
 use fulcrum_run::{bad, BadRequest};
+use fulcrum_shared::load_world as world;
 
 /// Run an `empowerment` subcommand.
 pub fn run(cmd: EmpCmd) -> Result<()> {

@@ -11,9 +11,9 @@
 use anyhow::Result;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::record::record;
-use fulcrum_run::select::load_world;
 use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::load_world;
 
 use crate::cli::RecordArgs;
 

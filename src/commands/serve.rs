@@ -10,7 +10,8 @@ use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
 use fulcrum_run::bad;
-use fulcrum_run::select::{engine, load_world as world, objects_or_default, tool_sel};
+use fulcrum_run::select::{engine, objects_or_default, tool_sel};
+use fulcrum_shared::load_world as world;
 
 /// Run the service until SIGINT or SIGTERM.
 pub fn run(a: &ServeArgs) -> Result<()> {
@@ -97,7 +98,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
 /// every count the service answers (a test of counts shared between processes).
 pub fn visit_process(ns: &str, world: &str, state: &str, times: usize) -> Result<()> {
     use fulcrum_empowerment::service::{Ask, Client};
-    let w = fulcrum_run::select::load_world(world)?;
+    let w = fulcrum_shared::load_world(world)?;
     let s = w.parse_state(state)?;
     let mut c = Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
     let mut out = String::new();

@@ -8,8 +8,9 @@ use fulcrum_shared::{parse_world, ObjectSet, Task, ToolChoice, World};
 use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
-use fulcrum_run::select::{engine, load_world as world};
+use fulcrum_run::select::engine;
 use fulcrum_shared::fsio::write_atomic;
+use fulcrum_shared::load_world as world;
 
 /// Run a `world` subcommand.
 pub fn run(cmd: WorldCmd) -> Result<()> {
