@@ -1,23 +1,23 @@
 //! Everything the learner checks in a trajectory chunk before it uses any of it.
 //!
 //! A chunk is bytes another process wrote; the learner trains on it, and stores its
-//! episode records into the checkpoint that actors resume from. [`check_chunk`] takes a
+//! episode records into the checkpoint that actors resume from. [`check_chunk`](crate::chunk_check::check_chunk) takes a
 //! chunk the learner has already copied out of shared memory (so that the sender cannot
 //! change it between the check and the use) and accepts it only when every section is
 //! something an actor of this world could have written:
 //!
 //! | section | accepted |
 //! |---|---|
-//! | header and sizes, actions, done bytes, every float finite | [`ChunkLayout::validate`] |
+//! | header and sizes, actions, done bytes, every float finite | [`ChunkLayout::validate`](crate::traj::ChunkLayout::validate) |
 //! | actions, in a run with action masking | each allowed by its transition's flags ([`crate::mask`]: an actor never samples another) |
 //! | glyphs | each below the world's glyph count (`9 + tools`) |
 //! | flags | each 0 or 1, exactly one mode flag set per transition |
 //! | terminated, truncated | never both at one transition; the header's episode and success counts are their counts |
-//! | env_state | each world's record one of the world's ([`check_record`]) |
+//! | env_state | each world's record one of the world's ([`check_record`](crate::valid::check_record)) |
 //! | ext_reward | between 0 and the most one step of the task pays |
-//! | int_reward | within [`INT_REWARD_BOUND`] |
-//! | logprob | between [`LOGPROB_FLOOR`] and 0 |
-//! | values (both heads, truncated, last) | within [`VALUE_BOUND`] |
+//! | int_reward | within [`INT_REWARD_BOUND`](crate::chunk_check::INT_REWARD_BOUND) |
+//! | logprob | between [`LOGPROB_FLOOR`](crate::chunk_check::LOGPROB_FLOOR) and 0 |
+//! | values (both heads, truncated, last) | within [`VALUE_BOUND`](crate::chunk_check::VALUE_BOUND) |
 //!
 //! The bounds are far outside anything a run produces and close enough that PPO's
 //! arithmetic on an accepted chunk stays finite in f32: the policy ratio is

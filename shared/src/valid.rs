@@ -1,10 +1,10 @@
 //! Which packed states and episode records belong to a world.
 //!
-//! A [`State`] or an [`EnvRecord`] that comes from outside the process (a chunk in shared
+//! A [`State`](crate::State) or an [`EnvRecord`](crate::traj::EnvRecord) that comes from outside the process (a chunk in shared
 //! memory, a checkpoint file) is only bytes until it is checked: the dynamics and the
 //! observation index the map with the agent's cell, a boulder's slot and the mode, so a
 //! record that no step could have produced would panic the process that uses it.
-//! [`World::check_state`] and [`check_record`] accept exactly what the world can hold,
+//! [`World::check_state`](crate::World::check_state) and [`check_record`](crate::valid::check_record) accept exactly what the world can hold,
 //! and refuse the rest with one sentence.
 //!
 //! A valid state has the agent inside the map and on a cell it may stand on, a mode of
@@ -12,7 +12,7 @@
 //! holding one), inventory bits only for the world's tools, each object's slot one of
 //! its kind's conditions (a boulder: a cell of the map or destroyed), unused slots and
 //! the reserved byte 0, and nothing standing where it cannot stand (the plausibility
-//! rules of a state description, [`World::parse_state`]). Reachability from the initial
+//! rules of a state description, [`World::parse_state`](crate::World::parse_state)). Reachability from the initial
 //! state is a stronger property that needs the enumerated state space; the actor asks
 //! the empowerment service for it where the run has one.
 //!

@@ -10,6 +10,11 @@ use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// A change made to a value under test.
+type Edit<T> = Box<dyn Fn(&mut T)>;
+/// A change made to a chunk's payload and header.
+type ChunkEdit<'a> = Box<dyn Fn(&mut Vec<u8>, &mut ChunkHeader) + 'a>;
+
 const WORLDS: [&str; 5] = ["exp1-tree", "exp1-wall", "exp2", "exp3", "room"];
 
 fn one_line(e: impl std::fmt::Display) -> bool {
@@ -47,7 +52,7 @@ fn each_kind_of_bad_state_is_refused_with_a_sentence() {
     let w = load_world("exp3").unwrap();
     let ok = w.initial;
     assert_eq!(w.check_state(&ok), Ok(()));
-    let edits: Vec<(&str, Box<dyn Fn(&mut State)>)> = vec![
+    let edits: Vec<(&str, Edit<State>)> = vec![
         ("outside the 13x7 map", Box::new(|s| s.x = 13)),
         ("outside the 13x7 map", Box::new(|s| s.y = 200)),
         ("rock", Box::new(|s| (s.x, s.y) = (0, 0))),
@@ -88,7 +93,7 @@ fn each_kind_of_bad_record_is_refused_with_a_sentence() {
     let w = load_world("exp2").unwrap();
     let good = EnvRecord::new(w.reset());
     assert!(check_record(&w, &good.to_bytes()).is_ok());
-    let edits: Vec<(&str, Box<dyn Fn(&mut EnvRecord)>)> = vec![
+    let edits: Vec<(&str, Edit<EnvRecord>)> = vec![
         ("max_steps", Box::new(|r| r.episode.t = 100)),
         (
             "not all objects of the task",
@@ -232,7 +237,7 @@ fn each_kind_of_bad_chunk_is_refused_with_its_reason() {
     };
     let er = l.range(Section::EnvState).start;
     let fr = l.range(Section::Flags).start;
-    let cases: Vec<(&str, Box<dyn Fn(&mut Vec<u8>, &mut ChunkHeader)>)> = vec![
+    let cases: Vec<(&str, ChunkEdit)> = vec![
         (
             "glyph 200",
             Box::new(|p, _| p[l.range(Section::Glyphs).start + 5] = 200),
