@@ -78,7 +78,7 @@ fn poisoned_chunks_are_refused_counted_and_the_run_finishes() {
     // be trained on, so a bad one that passed the check would reach the update.
     let c = train(
         &[
-            &["room", "--actors", "1", "--steps", "64000", "--out", d][..],
+            &["room", "--actors", "1", "--steps", "256000", "--out", d][..],
             &["--no-empowerment", "--max-policy-lag", "1000"],
             SMALL,
         ]
@@ -121,13 +121,14 @@ fn poisoned_chunks_are_refused_counted_and_the_run_finishes() {
             seq: seq as u64,
             ..h
         };
-        s.send().unwrap();
+        // Delivered to the learner's subscriber (the run is still going).
+        assert_eq!(s.send().unwrap(), 1);
     }
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
     let err = without_colours(&err);
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
-    assert_contiguous(&rows, 500, 128);
+    assert_contiguous(&rows, 2000, 128);
     assert_eq!(
         rows.last().unwrap().dropped_chunks,
         2,
