@@ -44,7 +44,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::error::ActorError;
 use crate::policy::Policy;
-use crate::resume::resume_records;
+use crate::resume::{reset_unknown_states, resume_records};
 use crate::service::{connect, pump};
 use crate::weights::WeightsIn;
 use fulcrum_shared::IpcError;
@@ -262,7 +262,7 @@ impl<'a> Actor<'a> {
         } else {
             Ask::Lookup
         };
-        let client = if cfg.empowerment {
+        let mut client = if cfg.empowerment {
             match connect(namespace, world, stop)? {
                 Some(c) => Some(c),
                 None => return Ok(None),
@@ -284,7 +284,10 @@ impl<'a> Actor<'a> {
 
         // Worlds: from the checkpoint when it was taken at this policy version.
         let mut envs: Vec<EnvRecord> = (0..m).map(|_| EnvRecord::new(world.reset())).collect();
-        if let Some(recs) = resume_records(checkpoint_path, shape, id.index, v0, m, world) {
+        if let Some(mut recs) = resume_records(checkpoint_path, shape, id.index, v0, m, world) {
+            if let Some(cl) = client.as_mut() {
+                reset_unknown_states(cl, id.index, world, &mut recs);
+            }
             envs = recs;
             tracing::info!(
                 actor = id.index,

@@ -29,6 +29,8 @@ pub mod fused;
 pub mod gae;
 /// `hosts.csv`: per update and host, the chunks used (runs with remote actors).
 pub mod hosts;
+/// A chunk's way in: copied out of shared memory, then checked whole.
+mod intake;
 /// Single-process training loop.
 pub mod local;
 /// `metrics.csv`: one row per update, written and read back.

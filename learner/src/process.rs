@@ -5,8 +5,10 @@
 //!
 //! 1. gather K valid chunks: synchronous mode takes one chunk per actor made by the
 //!    current policy version v; with `max_policy_lag = L` any chunk with
-//!    `v - L <= version <= v` counts. Invalid chunks (shape, action range, non-finite
-//!    numbers, another run or world) and stale ones are dropped and counted, never used;
+//!    `v - L <= version <= v` counts. Each chunk is copied out of shared memory and the
+//!    copy checked whole (the `intake` module); invalid chunks (another run or world, or
+//!    anything an actor of this world could not have written) and stale ones are
+//!    dropped and counted, never used;
 //! 2. order them by (actor, sequence) so the update does not depend on arrival order;
 //! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
 //!    from the chunk's `trunc_value`, termination does not);
@@ -44,6 +46,7 @@ use crate::csv::trim_rows;
 use crate::diagnostics::Stats;
 use crate::error::LearnerError;
 use crate::hosts::{HostsLog, HOSTS_COLUMNS};
+use crate::intake::take_chunk;
 use crate::local::update;
 use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
 use crate::net::Net;
@@ -369,11 +372,10 @@ impl<'a> Learner<'a> {
         Ok(Some(batch))
     }
 
-    /// Take what has arrived: invalid chunks (shape, action range, non-finite numbers,
-    /// another run or world) are dropped and counted, the others admitted, until the
+    /// Take what has arrived: invalid chunks (another run or world, or refused by
+    /// `take_chunk`) are dropped and counted, the others admitted, until the
     /// batch is full. Returns whether anything arrived.
     fn receive(&mut self, version: u64, batch: &mut Vec<Chunk>) -> Result<bool, LearnerError> {
-        let n_actions = self.world.num_actions();
         let mut got = false;
         while let Some(sample) = self
             .ports
@@ -383,22 +385,28 @@ impl<'a> Learner<'a> {
         {
             got = true;
             let h = *sample.user_header();
-            let payload: &[u8] = sample.payload();
             if h.run != self.run || h.world_hash != self.world_hash {
                 self.ctr.dropped += 1;
                 tracing::warn!(actor = h.actor, "dropped a chunk of another run or world");
                 continue;
             }
-            if let Err(why) = self.layout.validate(&h, n_actions, payload) {
-                self.ctr.dropped += 1;
-                tracing::warn!(actor = h.actor, seq = h.seq, why, "dropped a bad chunk");
-                continue;
-            }
-            self.arrived(&h);
-            let c = Chunk {
+            // Copied out of shared memory first, then checked: the copy is what is used.
+            let c = match take_chunk(
+                self.world,
+                &self.layout,
+                self.cfg.action_mask,
                 h,
-                data: payload.to_vec(),
+                sample.payload(),
+            ) {
+                Ok(c) => c,
+                Err(why) => {
+                    self.ctr.dropped += 1;
+                    tracing::warn!(actor = h.actor, seq = h.seq, %why, "dropped a bad chunk");
+                    continue;
+                }
             };
+            drop(sample);
+            self.arrived(&h);
             let k = self.target();
             self.admit(c, version, k, batch);
             if batch.len() >= k {

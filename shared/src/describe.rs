@@ -182,7 +182,7 @@ impl World {
     }
 
     /// Plain impossibilities, with the reason.
-    fn check_plausible(&self, s: &State) -> Result<(), DescribeError> {
+    pub(crate) fn check_plausible(&self, s: &State) -> Result<(), DescribeError> {
         let err = |m: String| Err(DescribeError(m));
         let (x, y) = (s.x as usize, s.y as usize);
         let c = y * self.width + x;

@@ -14,6 +14,8 @@
 pub mod builtin;
 /// Checkpoint files: format, checks, atomic writes (weights, optimiser state, counters).
 pub mod checkpoint;
+/// Everything the learner checks in a trajectory chunk before it uses any of it.
+pub mod chunk_check;
 /// A training run's configuration: what `config.toml` holds.
 pub mod config;
 /// The text form of states (`agent=X,Y holding=... mode=... obj=...`).
@@ -46,6 +48,8 @@ pub mod state;
 pub mod stop;
 /// Trajectory chunks and policy weights in shared memory.
 pub mod traj;
+/// Which packed states and episode records belong to a world.
+pub mod valid;
 /// The world, the rule table and the exact dynamics.
 pub mod world;
 

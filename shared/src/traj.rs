@@ -23,8 +23,9 @@
 //! ```
 //!
 //! f32 sections are little-endian bytes (no alignment assumed). Actors write straight
-//! into the loaned sample; the learner validates every chunk ([`ChunkLayout::validate`])
-//! before it copies anything out. The service is built with safe overflow off: a full
+//! into the loaned sample; the learner copies every chunk out of shared memory and then
+//! checks the copy whole ([`crate::chunk_check::check_chunk`], which starts with
+//! [`ChunkLayout::validate`]) before it uses any of it. The service is built with safe overflow off: a full
 //! learner queue blocks actors (backpressure), it never drops chunks.
 //!
 //! ## Policy weights (publish-subscribe, learner -> actors)
@@ -358,8 +359,10 @@ impl ChunkLayout {
         }
     }
 
-    /// Check a received chunk against what the learner expects: sizes, action range,
-    /// 0/1 flags, finite floats. Returns a short reason when the chunk must be dropped.
+    /// Check a received chunk's form against what the learner expects: sizes, action
+    /// range, 0/1 done bytes, finite floats. Returns a short reason when the chunk must
+    /// be dropped. The world-dependent rest (glyphs, flags, episode records, bounds) is
+    /// [`crate::chunk_check::check_chunk`], which calls this first.
     pub fn validate(
         &self,
         h: &ChunkHeader,

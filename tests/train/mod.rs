@@ -13,6 +13,7 @@ use iceoryx2::prelude::*;
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod chaos;
+mod poison;
 
 /// Small, fast settings: batch = actors * 4 worlds * 32 steps.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
