@@ -19,3 +19,4 @@ mod weights;
 pub use actor::{chunk_seed, run_actor, ActorId};
 pub use error::ActorError;
 pub use policy::Policy;
+pub use service::{SERVICE_START_LIMIT, SERVICE_WAIT};

@@ -48,6 +48,7 @@ use crate::local::update;
 use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
 use crate::net::Net;
 use crate::paths::RunPaths;
+use crate::watch::{ensure_finite, Fault, LocalStall, Notice};
 use fulcrum_shared::IpcError;
 
 /// Why the learner stopped.
@@ -69,7 +70,23 @@ pub fn run_learner(
     stop: &'static AtomicBool,
     progress: impl FnMut(&MetricsRow, u64),
 ) -> Result<LearnerExit, LearnerError> {
-    Learner::new(world, cfg, paths, namespace, stop)?.run(progress)
+    run_learner_noticed(world, cfg, paths, namespace, stop, progress, |_| {})
+}
+
+/// [`run_learner`], with `notice` told when the learner waits for chunks and when it
+/// goes on without a local actor ([`crate::watch`]).
+pub fn run_learner_noticed<'a>(
+    world: &'a World,
+    cfg: &'a RunConfig,
+    paths: &'a RunPaths,
+    namespace: &str,
+    stop: &'static AtomicBool,
+    progress: impl FnMut(&MetricsRow, u64),
+    notice: impl FnMut(&Notice) + 'a,
+) -> Result<LearnerExit, LearnerError> {
+    let mut l = Learner::new(world, cfg, paths, namespace, stop)?;
+    l.notice = Box::new(notice);
+    l.run(progress)
 }
 
 /// The learner's shared-memory ports: chunks and their wake-ups in, weights and theirs
@@ -139,6 +156,7 @@ impl Ports {
         version: u64,
     ) -> Result<(), LearnerError> {
         let flat = net.flat()?;
+        ensure_finite(&flat, version)?;
         let mut s = self
             .publisher
             .loan_slice_uninit(flat.len())
@@ -195,6 +213,12 @@ struct Learner<'a> {
     wall0: f64,
     /// When the last update ended.
     last: Instant,
+    /// The fault-injection hook of the tests ([`crate::watch`]).
+    fault: Fault,
+    /// Local actors left out in synchronous mode, and the deadline's measure.
+    local: LocalStall,
+    /// Where the learner's notices go.
+    notice: Box<dyn FnMut(&Notice) + 'a>,
 }
 
 impl<'a> Learner<'a> {
@@ -277,6 +301,9 @@ impl<'a> Learner<'a> {
             started: Instant::now(),
             wall0: ctr.wall_s,
             last: Instant::now(),
+            fault: Fault::from_env(),
+            local: LocalStall::default(),
+            notice: Box::new(|_| {}),
         })
     }
 
@@ -304,6 +331,7 @@ impl<'a> Learner<'a> {
                 );
             }
             let stats = self.update(&batch)?;
+            self.fault.inject(&self.net, self.ctr.update)?;
             self.publish(self.ctr.update)?;
             let row = self.record(stats, &batch, &chunks)?;
             progress(&row, self.planned(batch.len));
@@ -324,9 +352,11 @@ impl<'a> Learner<'a> {
         }
     }
 
-    /// Chunks an update takes: one per local actor and per live remote one.
+    /// Chunks an update takes: one per local actor not left out and per live remote
+    /// one (at least one: an update is never made of no chunk).
     fn target(&self) -> usize {
-        self.cfg.actors + self.roster.values().filter(|&&l| l).count()
+        let local = self.cfg.actors.saturating_sub(self.local.stalled.len());
+        (local + self.roster.values().filter(|&&l| l).count()).max(1)
     }
 
     /// Gather the chunks of the update after `version`, ordered by (actor, sequence) so
@@ -340,6 +370,8 @@ impl<'a> Learner<'a> {
             self.admit(c, version, k, &mut batch);
         }
         let stall = Duration::from_secs_f64(self.cfg.stall_timeout_s);
+        let local_deadline = self.local.deadline(stall);
+        let began = Instant::now();
         let mut idle = Instant::now();
         let mut gather = Instant::now();
         while batch.len() < self.target() {
@@ -353,6 +385,13 @@ impl<'a> Learner<'a> {
                 self.go_on_without_stalled(&batch);
                 gather = Instant::now();
             }
+            if self.cfg.max_policy_lag == 0
+                && !got
+                && !batch.is_empty()
+                && began.elapsed() > local_deadline
+            {
+                self.go_on_without_local(&batch, began);
+            }
             if !got && batch.len() < self.target() {
                 let _ = self
                     .ports
@@ -362,9 +401,15 @@ impl<'a> Learner<'a> {
                     // Weights may have been missed by a (re)started actor: repeat them.
                     idle = Instant::now();
                     self.publish(version)?;
+                    let actors = self.missing(&batch);
+                    (self.notice)(&Notice::Waiting {
+                        waited_s: began.elapsed().as_secs_f64(),
+                        actors,
+                    });
                 }
             }
         }
+        self.local.gathered(began.elapsed());
         batch.sort_by_key(|c| (c.h.actor, c.h.incarnation, c.h.seq));
         Ok(Some(batch))
     }
@@ -392,6 +437,7 @@ impl<'a> Learner<'a> {
             if let Err(why) = self.layout.validate(&h, n_actions, payload) {
                 self.ctr.dropped += 1;
                 tracing::warn!(actor = h.actor, seq = h.seq, why, "dropped a bad chunk");
+                self.refused(&h, version);
                 continue;
             }
             self.arrived(&h);
@@ -428,6 +474,9 @@ impl<'a> Learner<'a> {
             }
         }
         self.last_seq.insert(h.actor, (h.incarnation, h.seq));
+        if self.local.back(h.actor) {
+            tracing::info!(actor = h.actor, "a stalled local actor is back");
+        }
         if self.cfg.remote
             && traj::host_of(h.actor) > 0
             && self.roster.insert(h.actor, true) != Some(true)
@@ -479,6 +528,53 @@ impl<'a> Learner<'a> {
                     "no chunk from a remote actor within the stall timeout: going on without it"
                 );
             }
+        }
+    }
+
+    /// The actors whose chunks this update still waits for.
+    fn missing(&self, batch: &[Chunk]) -> Vec<u32> {
+        let local = (0..self.cfg.actors as u32).filter(|a| !self.local.stalled.contains(a));
+        let remote = self.roster.iter().filter(|(_, &l)| l).map(|(&a, _)| a);
+        local
+            .chain(remote)
+            .filter(|a| !batch.iter().any(|c| c.h.actor == *a))
+            .collect()
+    }
+
+    /// Synchronous mode: go on without the local actors that have not delivered within
+    /// the local deadline ([`crate::watch`]); each is awaited again from its next chunk.
+    fn go_on_without_local(&mut self, batch: &[Chunk], began: Instant) {
+        for a in 0..self.cfg.actors as u32 {
+            if !self.local.stalled.contains(&a) && !batch.iter().any(|c| c.h.actor == a) {
+                self.local.stalled.insert(a);
+                tracing::info!(
+                    actor = a,
+                    "no chunk from a local actor: going on without it"
+                );
+                (self.notice)(&Notice::Stalled {
+                    actor: a,
+                    waited_s: began.elapsed().as_secs_f64(),
+                    refused: false,
+                });
+            }
+        }
+    }
+
+    /// A local actor's chunk for `version` was refused: in synchronous mode it waits for
+    /// the next weights and sends no other chunk for this version, so this update does
+    /// not wait for it.
+    fn refused(&mut self, h: &ChunkHeader, version: u64) {
+        let local = traj::host_of(h.actor) == 0 && (h.actor as usize) < self.cfg.actors;
+        if self.cfg.max_policy_lag == 0
+            && local
+            && h.policy_version == version
+            && self.local.stalled.insert(h.actor)
+        {
+            (self.notice)(&Notice::Stalled {
+                actor: h.actor,
+                waited_s: 0.0,
+                refused: true,
+            });
         }
     }
 
