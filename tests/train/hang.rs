@@ -316,3 +316,105 @@ fn kills_spread_wider_than_the_window_do_not_use_up_the_budget() {
     );
     assert_nothing_left(&namespace_of(&err));
 }
+
+/// A child's stderr, read as it comes.
+struct LiveErr(
+    std::sync::Arc<std::sync::Mutex<String>>,
+    std::thread::JoinHandle<()>,
+);
+
+impl LiveErr {
+    fn of(c: &mut Child) -> LiveErr {
+        use std::io::BufRead;
+        let pipe = c.stderr.take().unwrap();
+        let text = std::sync::Arc::new(std::sync::Mutex::new(String::new()));
+        let t = text.clone();
+        let h = std::thread::spawn(move || {
+            for l in std::io::BufReader::new(pipe).lines().map_while(|l| l.ok()) {
+                let mut s = t.lock().unwrap();
+                s.push_str(&l);
+                s.push('\n');
+            }
+        });
+        LiveErr(text, h)
+    }
+
+    fn text(&self) -> String {
+        self.0.lock().unwrap().clone()
+    }
+
+    fn wait_for(&self, needle: &str, limit: Duration) {
+        wait_until(limit, needle, || self.text().contains(needle));
+    }
+}
+
+#[test]
+fn a_restarting_service_does_not_block_the_supervisor_or_trip_the_watchdog() {
+    let dir = TempDir::fresh("slow-service");
+    let d = dir.to_str().unwrap();
+    let mut c = train(
+        &[
+            &[
+                "room",
+                "--actors",
+                "2",
+                "--steps",
+                "25600000",
+                "--hang-timeout",
+                "3",
+                "--out",
+                d,
+            ][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    let err = LiveErr::of(&mut c);
+    wait_rows(&dir, 3, Duration::from_secs(60));
+    let old = super::children_with(c.id(), "serve");
+    assert_eq!(old.len(), 1, "one service: {old:?}");
+    signal(old[0], "-KILL");
+    // Hold the new service before it is ready (its table takes tens of ms; the
+    // supervisor starts it 0.1 s after the old one died).
+    let t = Instant::now();
+    let new = loop {
+        let now = super::children_with(c.id(), "serve");
+        if now.len() == 1 && now != old {
+            signal(now[0], "-STOP");
+            break now[0];
+        }
+        assert!(t.elapsed() < Duration::from_secs(20), "no new service");
+    };
+    let held = Instant::now();
+    // While the service is held, the supervisor's loop goes on: it restarts an actor.
+    let victim = actor(d, 1);
+    signal(victim, "-KILL");
+    err.wait_for(
+        "actor 1 stopped (signal 9); restarted after",
+        Duration::from_secs(10),
+    );
+    assert!(
+        !err.text()
+            .contains("the empowerment service is ready again"),
+        "the new service was ready before it was held (the test lost its race): {}",
+        err.text()
+    );
+    // The watchdog is held too: 5 s without an update, its limit 3 s.
+    std::thread::sleep(Duration::from_secs(5).saturating_sub(held.elapsed()));
+    assert!(c.try_wait().unwrap().is_none(), "{}", err.text());
+    signal(new, "-CONT");
+    err.wait_for(
+        "the empowerment service is ready again",
+        Duration::from_secs(10),
+    );
+    let n = read_metrics(&dir.join("metrics.csv")).unwrap().len();
+    wait_rows(&dir, n + 10, Duration::from_secs(30));
+    signal(c.id(), "-INT");
+    let status = c.wait().unwrap();
+    let LiveErr(text, reader) = err;
+    reader.join().unwrap();
+    let text = text.lock().unwrap().clone();
+    assert_eq!(status.code(), Some(130), "{text}");
+    assert!(!text.contains("no update for"), "{text}");
+    assert_nothing_left(&namespace_of(&text));
+}
