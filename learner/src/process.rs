@@ -7,11 +7,14 @@
 //!    current policy version v; with `max_policy_lag = L` any chunk with
 //!    `v - L <= version <= v` counts. Invalid chunks (shape, action range, non-finite
 //!    numbers, another run or world) and stale ones are dropped and counted, never used;
+//!    a local actor that does not deliver within its deadline, or whose chunk was
+//!    refused, is left out until its next chunk ([`crate::watch`]);
 //! 2. order them by (actor, sequence) so the update does not depend on arrival order;
 //! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
 //!    from the chunk's `trunc_value`, termination does not);
 //! 4. PPO on the concatenated batch with `lr = lr0 * (1 - u / U)`;
-//! 5. publish the weights as version v + 1, append a metrics row, checkpoint every N
+//! 5. check that the weights are finite (else stop: [`LearnerError::Diverged`]),
+//!    publish them as version v + 1, append a metrics row, checkpoint every N
 //!    updates and at the end (weights, Adam moments and step, the minibatch RNG,
 //!    counters, and each actor's episode records, so that a resumed run continues
 //!    exactly where the checkpoint was taken).

@@ -418,3 +418,57 @@ fn a_restarting_service_does_not_block_the_supervisor_or_trip_the_watchdog() {
     assert!(!text.contains("no update for"), "{text}");
     assert_nothing_left(&namespace_of(&text));
 }
+
+#[test]
+fn a_refused_chunk_does_not_leave_actor_and_learner_waiting_on_each_other() {
+    let dir = TempDir::fresh("refused");
+    let d = dir.to_str().unwrap();
+    // 40 updates of 2 actors; actor 1's sixth chunk (policy version 5) carries an
+    // action out of range (the actors' test hook).
+    let c: Child = fulcrum()
+        .args(
+            [
+                &[
+                    "train",
+                    "room",
+                    "--actors",
+                    "2",
+                    "--steps",
+                    "10240",
+                    "--no-empowerment",
+                    "--out",
+                    d,
+                ][..],
+                SMALL,
+            ]
+            .concat(),
+        )
+        .env("FULCRUM_FAULT_BAD_CHUNK", "1:5")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert!(status.success(), "{err}");
+    assert!(
+        err.contains("the learner refused a chunk of actor 1: it goes on without it"),
+        "{err}"
+    );
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_eq!(rows.len(), 40, "every update made");
+    assert_eq!(rows.last().unwrap().dropped_chunks, 1);
+    // One update without actor 1 (the one its refused chunk was for), whole chunks in
+    // all the others: it was taken back with its next chunk.
+    let steps = steps_per_update(&dir);
+    assert_eq!(steps[5], 128, "{steps:?}");
+    assert_eq!(steps.iter().filter(|&&s| s == 128).count(), 1, "{steps:?}");
+    assert!(steps.iter().all(|&s| s == 128 || s == 256), "{steps:?}");
+    // Nobody waited for the refused chunk: no update took anywhere near the local
+    // deadline (10 s).
+    let slowest = rows
+        .windows(2)
+        .map(|w| w[1].wall_s - w[0].wall_s)
+        .fold(0.0, f64::max);
+    assert!(slowest < 5.0, "an update took {slowest} s");
+    assert_nothing_left(&namespace_of(&err));
+}
