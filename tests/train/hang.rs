@@ -472,3 +472,41 @@ fn a_refused_chunk_does_not_leave_actor_and_learner_waiting_on_each_other() {
     assert!(slowest < 5.0, "an update took {slowest} s");
     assert_nothing_left(&namespace_of(&err));
 }
+
+#[test]
+fn a_stopped_learner_is_named_by_the_watchdog() {
+    let dir = TempDir::fresh("stopped-learner");
+    let d = dir.to_str().unwrap();
+    let c = train(
+        &[
+            &[
+                "room",
+                "--actors",
+                "1",
+                "--steps",
+                "12800000",
+                "--no-empowerment",
+                "--hang-timeout",
+                "3",
+                "--out",
+                d,
+            ][..],
+            SMALL,
+        ]
+        .concat(),
+    );
+    wait_rows(&dir, 5, Duration::from_secs(60));
+    let l = super::children_with(c.id(), "__learner");
+    assert_eq!(l.len(), 1);
+    signal(l[0], "-STOP");
+    let t0 = Instant::now();
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert!(t0.elapsed() < Duration::from_secs(15), "{:?}", t0.elapsed());
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("at least 3 s): the learner itself stalled"),
+        "{err}"
+    );
+    assert!(!err.contains("waiting for actor"), "{err}");
+    assert_nothing_left(&namespace_of(&err));
+}
