@@ -450,7 +450,10 @@ impl<'a> Learner<'a> {
             };
             let k = self.target();
             self.admit(c, version, k, batch);
-            if batch.len() >= k {
+            // Synchronous actors send one chunk per version: read all that came (at
+            // most one per actor), so that a queue served after another's is never
+            // left to go stale; asynchronous ones are held back by the queue instead.
+            if batch.len() >= k && self.cfg.max_policy_lag > 0 {
                 break;
             }
         }
@@ -567,6 +570,8 @@ impl<'a> Learner<'a> {
     /// the next weights and sends no other chunk for this version, so this update does
     /// not wait for it.
     fn refused(&mut self, h: &ChunkHeader, version: u64) {
+        // Its sequence number is taken: the next chunk is no gap (nothing was lost).
+        self.last_seq.insert(h.actor, (h.incarnation, h.seq));
         let local = traj::host_of(h.actor) == 0 && (h.actor as usize) < self.cfg.actors;
         if self.cfg.max_policy_lag == 0
             && local

@@ -457,6 +457,7 @@ fn a_refused_chunk_does_not_leave_actor_and_learner_waiting_on_each_other() {
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
     assert_eq!(rows.len(), 40, "every update made");
     assert_eq!(rows.last().unwrap().dropped_chunks, 1);
+    assert_eq!(rows.last().unwrap().lost_chunks, 0, "refused, not lost");
     // One update without actor 1 (the one its refused chunk was for), whole chunks in
     // all the others: it was taken back with its next chunk.
     let steps = steps_per_update(&dir);
