@@ -431,9 +431,18 @@ pub struct TrainArgs {
     /// Stop (with a checkpoint, resumable) after this many updates in this session.
     #[arg(long, hide = true)]
     pub stop_after_updates: Option<u64>,
-    /// Restarts of crashed actors or services allowed over the run.
-    #[arg(long, default_value_t = 20)]
+    /// Restarts each child (each actor slot, the empowerment service, the bridge) may
+    /// have within --restart-window seconds; one more stop ends the run. Restarts wait
+    /// a back-off of 100 ms doubling to 10 s.
+    #[arg(long, default_value_t = fulcrum_run::restart::DEFAULT_MAX_RESTARTS)]
     pub max_restarts: u32,
+    /// The window of --max-restarts, seconds.
+    #[arg(long, value_name = "SECS", default_value_t = fulcrum_run::restart::DEFAULT_WINDOW_S)]
+    pub restart_window: f64,
+    /// End the run (exit 1, naming who stalled) when no update came for this many
+    /// seconds and 20 times the recent update time.
+    #[arg(long, value_name = "SECS", default_value_t = fulcrum_run::watchdog::DEFAULT_FLOOR_S)]
+    pub hang_timeout: f64,
     /// At the end, play N episodes of the final policy and draw each as a strip of
     /// frames in RUN/episodes/ (as `fulcrum record`).
     #[arg(long)]
@@ -729,6 +738,29 @@ impl TrainArgs {
             remote: a.listen.is_some(),
             stall_timeout: a.stall_timeout,
         })
+    }
+}
+
+impl TrainArgs {
+    /// The supervisor's restart policy and watchdog floor, from --max-restarts,
+    /// --restart-window and --hang-timeout.
+    pub fn supervision(
+        &self,
+    ) -> Result<(fulcrum_run::restart::RestartPolicy, std::time::Duration), BadRequest> {
+        let secs = |v: f64, flag: &str| {
+            if v.is_finite() && v > 0.0 && v < 1e9 {
+                Ok(std::time::Duration::from_secs_f64(v))
+            } else {
+                Err(BadRequest(format!(
+                    "{flag} {v} must be a positive number of seconds"
+                )))
+            }
+        };
+        let policy = fulcrum_run::restart::RestartPolicy {
+            max: self.max_restarts,
+            window: secs(self.restart_window, "--restart-window")?,
+        };
+        Ok((policy, secs(self.hang_timeout, "--hang-timeout")?))
     }
 }
 

@@ -7,6 +7,8 @@
 pub mod actor;
 /// Why an actor failed.
 pub mod error;
+/// The test hook that sends one bad chunk.
+pub mod fault;
 /// The policy evaluated on plain buffers (no candle).
 pub mod policy;
 /// The worlds an actor resumes from the run's checkpoint.
@@ -19,3 +21,4 @@ mod weights;
 pub use actor::{chunk_seed, run_actor, ActorId};
 pub use error::ActorError;
 pub use policy::Policy;
+pub use service::{SERVICE_START_LIMIT, SERVICE_WAIT};

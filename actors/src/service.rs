@@ -10,6 +10,16 @@ use fulcrum_shared::{State, World};
 
 use crate::error::ActorError;
 
+/// How long the empowerment service may take to start (build its table): the
+/// supervisor gives a (re)started service this long before it ends the run.
+pub const SERVICE_START_LIMIT: Duration = Duration::from_secs(600);
+
+/// How long an actor waits for the empowerment service before it gives up: the
+/// service's start limit and a margin that covers the supervisor's longest restart
+/// back-off (10 s), so an actor never gives up on a service the supervisor is still
+/// restarting.
+pub const SERVICE_WAIT: Duration = Duration::from_secs(600 + 30);
+
 /// Send pending states and collect answers until either everything collected is
 /// sent or the pipe is full; then collect one answer.
 pub(crate) fn pump(
@@ -40,7 +50,8 @@ pub(crate) fn pump(
     Ok(())
 }
 
-/// Connect to the run's empowerment service, retrying until it answers or `stop`.
+/// Connect to the run's empowerment service, retrying until it answers, `stop`, or
+/// [`SERVICE_WAIT`] has passed.
 pub(crate) fn connect(
     namespace: &str,
     world: &World,
@@ -57,7 +68,7 @@ pub(crate) fn connect(
                 return Err(ActorError::Service(e.to_string()))
             }
             Err(e) => {
-                if t0.elapsed() > Duration::from_secs(120) {
+                if t0.elapsed() > SERVICE_WAIT {
                     return Err(ActorError::Service(e.to_string()));
                 }
                 tracing::info!("waiting for the empowerment service: {e}");

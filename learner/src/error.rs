@@ -14,6 +14,15 @@ pub enum LearnerError {
     /// candle failed.
     #[error("candle: {0}")]
     Candle(#[from] candle_core::Error),
+    /// The weights after an update hold NaN or infinite values (training diverged);
+    /// they were not published.
+    #[error("training diverged: the weights after update {update} are not finite ({bad} NaN or infinite values); they were not published to the actors and the last checkpoint keeps earlier weights")]
+    Diverged {
+        /// The update that made them.
+        update: u64,
+        /// How many values are not finite.
+        bad: usize,
+    },
     /// iceoryx2 failed.
     #[error(transparent)]
     Ipc(#[from] fulcrum_shared::IpcError),

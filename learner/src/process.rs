@@ -8,12 +8,15 @@
 //!    `v - L <= version <= v` counts. Each chunk is copied out of shared memory and the
 //!    copy checked whole (the `intake` module); invalid chunks (another run or world, or
 //!    anything an actor of this world could not have written) and stale ones are
-//!    dropped and counted, never used;
+//!    dropped and counted, never used; a local actor that does not deliver within its
+//!    deadline, or whose chunk was refused, is left out until its next chunk
+//!    ([`crate::watch`]);
 //! 2. order them by (actor, sequence) so the update does not depend on arrival order;
 //! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
 //!    from the chunk's `trunc_value`, termination does not);
 //! 4. PPO on the concatenated batch with `lr = lr0 * (1 - u / U)`;
-//! 5. publish the weights as version v + 1, append a metrics row, checkpoint every N
+//! 5. check that the weights are finite (else stop: [`LearnerError::Diverged`]),
+//!    publish them as version v + 1, append a metrics row, checkpoint every N
 //!    updates and at the end (weights, Adam moments and step, the minibatch RNG,
 //!    counters, and each actor's episode records, so that a resumed run continues
 //!    exactly where the checkpoint was taken).
@@ -51,6 +54,7 @@ use crate::local::update;
 use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
 use crate::net::Net;
 use crate::paths::RunPaths;
+use crate::watch::{ensure_finite, Fault, LocalStall, Notice};
 use fulcrum_shared::IpcError;
 
 /// Why the learner stopped.
@@ -72,7 +76,23 @@ pub fn run_learner(
     stop: &'static AtomicBool,
     progress: impl FnMut(&MetricsRow, u64),
 ) -> Result<LearnerExit, LearnerError> {
-    Learner::new(world, cfg, paths, namespace, stop)?.run(progress)
+    run_learner_noticed(world, cfg, paths, namespace, stop, progress, |_| {})
+}
+
+/// [`run_learner`], with `notice` told when the learner waits for chunks and when it
+/// goes on without a local actor ([`crate::watch`]).
+pub fn run_learner_noticed<'a>(
+    world: &'a World,
+    cfg: &'a RunConfig,
+    paths: &'a RunPaths,
+    namespace: &str,
+    stop: &'static AtomicBool,
+    progress: impl FnMut(&MetricsRow, u64),
+    notice: impl FnMut(&Notice) + 'a,
+) -> Result<LearnerExit, LearnerError> {
+    let mut l = Learner::new(world, cfg, paths, namespace, stop)?;
+    l.notice = Box::new(notice);
+    l.run(progress)
 }
 
 /// The learner's shared-memory ports: chunks and their wake-ups in, weights and theirs
@@ -142,6 +162,7 @@ impl Ports {
         version: u64,
     ) -> Result<(), LearnerError> {
         let flat = net.flat()?;
+        ensure_finite(&flat, version)?;
         let mut s = self
             .publisher
             .loan_slice_uninit(flat.len())
@@ -198,6 +219,12 @@ struct Learner<'a> {
     wall0: f64,
     /// When the last update ended.
     last: Instant,
+    /// The fault-injection hook of the tests ([`crate::watch`]).
+    fault: Fault,
+    /// Local actors left out in synchronous mode, and the deadline's measure.
+    local: LocalStall,
+    /// Where the learner's notices go.
+    notice: Box<dyn FnMut(&Notice) + 'a>,
 }
 
 impl<'a> Learner<'a> {
@@ -280,6 +307,9 @@ impl<'a> Learner<'a> {
             started: Instant::now(),
             wall0: ctr.wall_s,
             last: Instant::now(),
+            fault: Fault::from_env(),
+            local: LocalStall::default(),
+            notice: Box::new(|_| {}),
         })
     }
 
@@ -307,6 +337,7 @@ impl<'a> Learner<'a> {
                 );
             }
             let stats = self.update(&batch)?;
+            self.fault.inject(&self.net, self.ctr.update)?;
             self.publish(self.ctr.update)?;
             let row = self.record(stats, &batch, &chunks)?;
             progress(&row, self.planned(batch.len));
@@ -327,9 +358,11 @@ impl<'a> Learner<'a> {
         }
     }
 
-    /// Chunks an update takes: one per local actor and per live remote one.
+    /// Chunks an update takes: one per local actor not left out and per live remote
+    /// one (at least one: an update is never made of no chunk).
     fn target(&self) -> usize {
-        self.cfg.actors + self.roster.values().filter(|&&l| l).count()
+        let local = self.cfg.actors.saturating_sub(self.local.stalled.len());
+        (local + self.roster.values().filter(|&&l| l).count()).max(1)
     }
 
     /// Gather the chunks of the update after `version`, ordered by (actor, sequence) so
@@ -343,6 +376,8 @@ impl<'a> Learner<'a> {
             self.admit(c, version, k, &mut batch);
         }
         let stall = Duration::from_secs_f64(self.cfg.stall_timeout_s);
+        let local_deadline = self.local.deadline(stall);
+        let began = Instant::now();
         let mut idle = Instant::now();
         let mut gather = Instant::now();
         while batch.len() < self.target() {
@@ -356,6 +391,13 @@ impl<'a> Learner<'a> {
                 self.go_on_without_stalled(&batch);
                 gather = Instant::now();
             }
+            if self.cfg.max_policy_lag == 0
+                && !got
+                && !batch.is_empty()
+                && began.elapsed() > local_deadline
+            {
+                self.go_on_without_local(&batch, began);
+            }
             if !got && batch.len() < self.target() {
                 let _ = self
                     .ports
@@ -365,9 +407,15 @@ impl<'a> Learner<'a> {
                     // Weights may have been missed by a (re)started actor: repeat them.
                     idle = Instant::now();
                     self.publish(version)?;
+                    let actors = self.missing(&batch);
+                    (self.notice)(&Notice::Waiting {
+                        waited_s: began.elapsed().as_secs_f64(),
+                        actors,
+                    });
                 }
             }
         }
+        self.local.gathered(began.elapsed());
         batch.sort_by_key(|c| (c.h.actor, c.h.incarnation, c.h.seq));
         Ok(Some(batch))
     }
@@ -402,6 +450,7 @@ impl<'a> Learner<'a> {
                 Err(why) => {
                     self.ctr.dropped += 1;
                     tracing::warn!(actor = h.actor, seq = h.seq, %why, "dropped a bad chunk");
+                    self.refused(&h, version);
                     continue;
                 }
             };
@@ -409,7 +458,10 @@ impl<'a> Learner<'a> {
             self.arrived(&h);
             let k = self.target();
             self.admit(c, version, k, batch);
-            if batch.len() >= k {
+            // Synchronous actors send one chunk per version: read all that came (at
+            // most one per actor), so that a queue served after another's is never
+            // left to go stale; asynchronous ones are held back by the queue instead.
+            if batch.len() >= k && self.cfg.max_policy_lag > 0 {
                 break;
             }
         }
@@ -436,6 +488,9 @@ impl<'a> Learner<'a> {
             }
         }
         self.last_seq.insert(h.actor, (h.incarnation, h.seq));
+        if self.local.back(h.actor) {
+            tracing::info!(actor = h.actor, "a stalled local actor is back");
+        }
         if self.cfg.remote
             && traj::host_of(h.actor) > 0
             && self.roster.insert(h.actor, true) != Some(true)
@@ -487,6 +542,55 @@ impl<'a> Learner<'a> {
                     "no chunk from a remote actor within the stall timeout: going on without it"
                 );
             }
+        }
+    }
+
+    /// The actors whose chunks this update still waits for.
+    fn missing(&self, batch: &[Chunk]) -> Vec<u32> {
+        let local = (0..self.cfg.actors as u32).filter(|a| !self.local.stalled.contains(a));
+        let remote = self.roster.iter().filter(|(_, &l)| l).map(|(&a, _)| a);
+        local
+            .chain(remote)
+            .filter(|a| !batch.iter().any(|c| c.h.actor == *a))
+            .collect()
+    }
+
+    /// Synchronous mode: go on without the local actors that have not delivered within
+    /// the local deadline ([`crate::watch`]); each is awaited again from its next chunk.
+    fn go_on_without_local(&mut self, batch: &[Chunk], began: Instant) {
+        for a in 0..self.cfg.actors as u32 {
+            if !self.local.stalled.contains(&a) && !batch.iter().any(|c| c.h.actor == a) {
+                self.local.stalled.insert(a);
+                tracing::info!(
+                    actor = a,
+                    "no chunk from a local actor: going on without it"
+                );
+                (self.notice)(&Notice::Stalled {
+                    actor: a,
+                    waited_s: began.elapsed().as_secs_f64(),
+                    refused: false,
+                });
+            }
+        }
+    }
+
+    /// A local actor's chunk for `version` was refused: in synchronous mode it waits for
+    /// the next weights and sends no other chunk for this version, so this update does
+    /// not wait for it.
+    fn refused(&mut self, h: &ChunkHeader, version: u64) {
+        // Its sequence number is taken: the next chunk is no gap (nothing was lost).
+        self.last_seq.insert(h.actor, (h.incarnation, h.seq));
+        let local = traj::host_of(h.actor) == 0 && (h.actor as usize) < self.cfg.actors;
+        if self.cfg.max_policy_lag == 0
+            && local
+            && h.policy_version == version
+            && self.local.stalled.insert(h.actor)
+        {
+            (self.notice)(&Notice::Stalled {
+                actor: h.actor,
+                waited_s: 0.0,
+                refused: true,
+            });
         }
     }
 

@@ -7,8 +7,10 @@ use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
+use fulcrum_learner::metrics::MetricsRow;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_learner::process::{run_learner, LearnerExit};
+use fulcrum_learner::process::{run_learner_noticed, LearnerExit};
+use fulcrum_learner::watch::Notice;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
 
@@ -58,7 +60,7 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
     let stop_after = a.stop_after_updates;
     let mut first: Option<u64> = None;
     let mut paused = false;
-    let exit = run_learner(&w, &cfg, &paths, &a.namespace, &STOP, |row, updates| {
+    let progress = |row: &MetricsRow, updates: u64| {
         let mut out = std::io::stdout().lock();
         let _ = writeln!(
             out,
@@ -71,7 +73,13 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
             paused = true;
             STOP.store(true, Ordering::Relaxed);
         }
-    })?;
+    };
+    let notice = |n: &Notice| {
+        let mut out = std::io::stdout().lock();
+        let _ = writeln!(out, "{}", crate::watchdog::notice_line(n));
+        let _ = out.flush();
+    };
+    let exit = run_learner_noticed(&w, &cfg, &paths, &a.namespace, &STOP, progress, notice)?;
     match exit {
         LearnerExit::Finished => Ok(()),
         LearnerExit::Interrupted if paused && !signalled() => std::process::exit(EXIT_PAUSED),

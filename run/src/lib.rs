@@ -14,6 +14,8 @@
 //! | [`supervisor`] | the run's child processes, restarts, progress, shutdown |
 //! | [`child`] | the learner and actor processes as the supervisor starts them |
 //! | [`process`] | the one stop flag, signals, die-with-parent, spawn-until-ready |
+//! | [`restart`] | per-child restart budgets in a window, exponential back-off |
+//! | [`watchdog`] | ending a run that makes no update for too long, naming who stalled |
 //! | [`progress`] | a bar on a terminal, a line now and then elsewhere |
 //! | [`curve`] | the learning curve drawn when a run ends |
 //! | [`record`] | episodes of a run's policy as strips of frames |
@@ -29,8 +31,10 @@ pub mod plan;
 pub mod process;
 pub mod progress;
 pub mod record;
+pub mod restart;
 pub mod select;
 pub mod stats;
 pub mod supervisor;
+pub mod watchdog;
 
 pub use error::{bad, BadRequest, Interrupted};

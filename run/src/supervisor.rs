@@ -1,7 +1,9 @@
 //! The supervisor of a training run: it starts the empowerment service, the learner,
 //! the bridge to other hosts and the actors as child processes of the `fulcrum`
 //! executable, shows the learner's progress, restarts crashed actors, bridge and
-//! service (bounded), and stops everything in order.
+//! service (each within its own budget, after a back-off: [`crate::restart`]), ends a
+//! run that makes no update for too long ([`crate::watchdog`]), and stops everything in
+//! order.
 //!
 //! ```text
 //! fulcrum train WORLD            supervisor: run directory, config.toml, children, progress
@@ -15,16 +17,21 @@
 //! checkpoint) and die with the supervisor (`PR_SET_PDEATHSIG`). A crashed learner
 //! ends the run with its last checkpoint and a message saying how to resume.
 //!
-//! The loop waits on events, not on a clock: one `select!` over the learner's lines,
-//! the children's exits and the stop signal.
+//! The loop waits on events: one `select!` over the learner's lines, the children's
+//! exits, the stop signal, the lines of a restarting service, and a timer for the
+//! restarts due and the watchdog. Nothing in it blocks for long: a restarted service
+//! builds its table while the loop goes on (the watchdog held meanwhile), within
+//! [`fulcrum_actors::SERVICE_START_LIMIT`], the limit its actors wait for too.
 
+use std::collections::BTreeMap;
 use std::os::unix::process::CommandExt;
 use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
-use crossbeam_channel::{never, select, Receiver, Sender};
+use crossbeam_channel::{after, never, select, Receiver, Sender};
+use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_shared::config::RunConfig;
 
@@ -34,14 +41,19 @@ use crate::process::{
     stop_events, Ready,
 };
 use crate::progress::Progress;
+use crate::restart::{Budget, RestartPolicy};
+use crate::watchdog::{parse_notice, Watchdog};
+use fulcrum_learner::watch::Notice;
 
 /// Exit code of a learner that stopped early on request (after a set number of updates).
 pub const EXIT_PAUSED: i32 = 3;
 /// Exit code of a learner stopped by a signal after writing its checkpoint.
 pub const EXIT_INTERRUPTED: i32 = 130;
 
-/// How long the empowerment service may take to build its table.
-const SERVICE_READY: Duration = Duration::from_secs(600);
+/// How long the bridge may take to listen.
+const BRIDGE_READY: Duration = Duration::from_secs(60);
+/// How often the loop looks at the restarts due and the watchdog, at least.
+const TICK: Duration = Duration::from_millis(250);
 
 /// How a supervised run ended (failures are errors).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -67,8 +79,10 @@ pub struct Options {
     pub session_timeout: f64,
     /// A zenoh configuration file for the bridge.
     pub zenoh_config: Option<PathBuf>,
-    /// Restarts of crashed children the run may spend in all.
-    pub max_restarts: u32,
+    /// Restarts each child (actor slot, service, bridge) may have within a window.
+    pub restarts: RestartPolicy,
+    /// The watchdog's floor: no run is ended sooner for making no update.
+    pub watchdog_floor: Duration,
     /// The learner stops (checkpoint written) after this many updates.
     pub stop_after: Option<u64>,
 }
@@ -81,6 +95,36 @@ enum Who {
     Bridge,
     /// Actor index and incarnation.
     Actor(usize, u32),
+}
+
+/// A child that is restarted when it stops, with a restart budget of its own.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+enum Slot {
+    Service,
+    Bridge,
+    /// Actor index.
+    Actor(usize),
+}
+
+impl Slot {
+    fn name(self) -> String {
+        match self {
+            Slot::Service => "the empowerment service".into(),
+            Slot::Bridge => "the bridge".into(),
+            Slot::Actor(i) => format!("actor {i}"),
+        }
+    }
+}
+
+/// A restart waiting for its back-off to pass.
+#[derive(Debug)]
+struct Due {
+    at: Instant,
+    slot: Slot,
+    /// How the child stopped, the restart's number in the window and its back-off.
+    status: ExitStatus,
+    n: u32,
+    delay: Duration,
 }
 
 /// Runs `cfg` in `paths` to its end: starts every child, waits, stops them all.
@@ -97,7 +141,11 @@ pub fn supervise(cfg: &RunConfig, paths: &RunPaths, opts: &Options) -> Result<Ou
         learner: None,
         learner_lines: never(),
         actors: Vec::new(),
-        restarts: 0,
+        budgets: BTreeMap::new(),
+        due: Vec::new(),
+        service_lines: never(),
+        service_deadline: None,
+        watchdog: Watchdog::new(opts.watchdog_floor),
     };
     let result = sup.run();
     sup.shutdown();
@@ -119,7 +167,14 @@ struct Supervisor {
     learner_lines: Receiver<String>,
     /// Each actor and its incarnation.
     actors: Vec<(Option<Child>, u32)>,
-    restarts: u32,
+    /// Each restartable child's stops within its window.
+    budgets: BTreeMap<Slot, Budget>,
+    /// Restarts waiting for their back-off.
+    due: Vec<Due>,
+    /// A restarting service's lines until it is ready (then `never()`), and its limit.
+    service_lines: Receiver<String>,
+    service_deadline: Option<Instant>,
+    watchdog: Watchdog,
 }
 
 impl Supervisor {
@@ -153,8 +208,8 @@ impl Supervisor {
         send_on_exit(child, self.exits_tx.clone(), who);
     }
 
-    /// The empowerment service; returns once its table is built (or the run stops).
-    fn start_service(&mut self) -> Result<()> {
+    /// The empowerment service's command.
+    fn service_command(&self) -> Command {
         let mut args = vec![
             "serve".to_string(),
             self.cfg.world.clone(),
@@ -182,7 +237,14 @@ impl Supervisor {
                 Ok(())
             });
         }
-        match spawn_until_ready(cmd, "the empowerment service", Some(SERVICE_READY))? {
+        cmd
+    }
+
+    /// The empowerment service at the run's start; returns once its table is built (or
+    /// the run stops).
+    fn start_service(&mut self) -> Result<()> {
+        let cmd = self.service_command();
+        match spawn_until_ready(cmd, "the empowerment service", Some(SERVICE_START_LIMIT))? {
             Ready::Ready(child, (), _) => {
                 self.watch(&child, Who::Service);
                 self.service = Some(child);
@@ -218,7 +280,7 @@ impl Supervisor {
             args.extend(["--zenoh-config".into(), c.display().to_string()]);
         }
         let cmd = self.command(&args, 1);
-        let child = match spawn_until_ready(cmd, "the bridge", None)? {
+        let child = match spawn_until_ready(cmd, "the bridge", Some(BRIDGE_READY))? {
             Ready::Ready(child, (), _) => child,
             Ready::Stopped => return Ok(()),
             Ready::Exited(s) if s.code() == Some(2) => {
@@ -301,14 +363,27 @@ impl Supervisor {
             Duration::from_secs(5),
         );
         let mut stopping = false;
+        self.watchdog = Watchdog::new(self.opts.watchdog_floor);
         loop {
             let stop_now = if stopping { never() } else { stop.clone() };
+            let wake = if stopping {
+                never()
+            } else {
+                after(self.next_wake())
+            };
             select! {
                 recv(self.learner_lines) -> line => match line {
-                    Ok(l) => learner_line(&mut progress, &l),
+                    Ok(l) => self.learner_said(&mut progress, &l),
                     // Closed: the learner is exiting; its exit event follows.
                     Err(_) => self.learner_lines = never(),
                 },
+                recv(self.service_lines) -> line => match line {
+                    Ok(l) if l.contains("ready") => self.service_ready(&progress),
+                    Ok(_) => {}
+                    // Closed: the service is exiting; its exit event follows.
+                    Err(_) => self.service_lines = never(),
+                },
+                recv(wake) -> _ => self.on_time(&mut progress)?,
                 recv(stop_now) -> _ => {
                     // The learner writes its checkpoint and exits; then the rest stop.
                     if let Some(l) = &self.learner {
@@ -322,7 +397,7 @@ impl Supervisor {
                         return self.learner_ended(&mut progress, stopping);
                     }
                     if !stopping {
-                        self.restart(who, &mut progress)?;
+                        self.stopped(who, &progress)?;
                     }
                 },
             }
@@ -358,62 +433,167 @@ impl Supervisor {
         }
     }
 
-    /// Restarts a child that stopped (bounded by the run's restarts).
-    fn restart(&mut self, who: Who, progress: &mut Progress) -> Result<()> {
-        match who {
-            Who::Learner => Ok(()),
+    /// A child stopped: reap it and schedule its restart after its back-off, or end
+    /// the run when it is over its budget.
+    fn stopped(&mut self, who: Who, progress: &Progress) -> Result<()> {
+        let (slot, status) = match who {
+            Who::Learner => return Ok(()),
             Who::Actor(i, inc) => {
                 let current = self.actors[i].1 == inc;
-                let Some(s) = reap(&mut self.actors[i].0, current)? else {
-                    return Ok(());
-                };
-                self.count_restart(&format!("actor {i}"), s)?;
+                (Slot::Actor(i), reap(&mut self.actors[i].0, current)?)
+            }
+            Who::Bridge => (Slot::Bridge, reap(&mut self.bridge, true)?),
+            Who::Service => {
+                self.service_lines = never();
+                self.service_deadline = None;
+                (Slot::Service, reap(&mut self.service, true)?)
+            }
+        };
+        let Some(status) = status else {
+            return Ok(());
+        };
+        let policy = self.opts.restarts;
+        let budget = self.budgets.entry(slot).or_default();
+        let allowed = budget.stopped(&policy, Instant::now()).map_err(|over| {
+            anyhow::anyhow!(
+                "{} stopped ({}), its stop number {} within {:.0} s: over its budget of {} restarts in {:.0} s",
+                slot.name(),
+                describe_status(status),
+                over.n,
+                policy.window.as_secs_f64(),
+                policy.max,
+                policy.window.as_secs_f64()
+            )
+        })?;
+        if slot == Slot::Service || slot == Slot::Bridge {
+            // Actor restarts are told when they happen (the tests count those lines).
+            progress.note(&format!(
+                "{} stopped ({}); restarting it in {:.1} s (restart {} of {} allowed in {:.0} s)",
+                slot.name(),
+                describe_status(status),
+                allowed.delay.as_secs_f64(),
+                allowed.n,
+                policy.max,
+                policy.window.as_secs_f64()
+            ));
+        }
+        if slot == Slot::Service {
+            // Actors wait for the new service by design: hold the watchdog meanwhile.
+            self.watchdog.hold();
+        }
+        self.due.push(Due {
+            at: Instant::now() + allowed.delay,
+            slot,
+            status,
+            n: allowed.n,
+            delay: allowed.delay,
+        });
+        Ok(())
+    }
+
+    /// How long the loop may sleep: until the next restart due, a tick at most.
+    fn next_wake(&self) -> Duration {
+        let now = Instant::now();
+        self.due
+            .iter()
+            .map(|d| d.at.saturating_duration_since(now))
+            .min()
+            .unwrap_or(TICK)
+            .min(TICK)
+    }
+
+    /// The timer: restarts whose back-off has passed, the service's start limit, the
+    /// watchdog.
+    fn on_time(&mut self, progress: &mut Progress) -> Result<()> {
+        let now = Instant::now();
+        let (ready, waiting): (Vec<Due>, Vec<Due>) = std::mem::take(&mut self.due)
+            .into_iter()
+            .partition(|d| d.at <= now);
+        self.due = waiting;
+        for d in ready {
+            self.restart(d, progress)?;
+        }
+        if self.service_deadline.is_some_and(|t| now > t) {
+            anyhow::bail!(
+                "the restarted empowerment service was not ready within {:.0} s",
+                SERVICE_START_LIMIT.as_secs_f64()
+            );
+        }
+        if let Some(why) = self.watchdog.check() {
+            anyhow::bail!(
+                "{why}; the last checkpoint is in {}; continue with `fulcrum train --resume {}`",
+                self.paths.checkpoint().display(),
+                self.paths.dir.display()
+            );
+        }
+        Ok(())
+    }
+
+    /// Restart a child whose back-off has passed.
+    fn restart(&mut self, d: Due, progress: &Progress) -> Result<()> {
+        match d.slot {
+            Slot::Actor(i) => {
                 progress.note(&format!(
-                    "actor {i} stopped ({}); restarted ({} of {} restarts)",
-                    describe_status(s),
-                    self.restarts,
-                    self.opts.max_restarts
+                    "actor {i} stopped ({}); restarted after {:.1} s (restart {} of {} allowed in {:.0} s)",
+                    describe_status(d.status),
+                    d.delay.as_secs_f64(),
+                    d.n,
+                    self.opts.restarts.max,
+                    self.opts.restarts.window.as_secs_f64()
                 ));
+                let inc = self.actors[i].1;
                 self.start_actor(i, inc + 1)
             }
-            Who::Bridge => {
-                let Some(s) = reap(&mut self.bridge, true)? else {
-                    return Ok(());
-                };
-                self.count_restart("the bridge", s)?;
-                progress.note(&format!(
-                    "the bridge stopped ({}); restarting it",
-                    describe_status(s)
-                ));
-                self.start_bridge()
-            }
-            Who::Service => {
-                let Some(s) = reap(&mut self.service, true)? else {
-                    return Ok(());
-                };
-                self.count_restart("the empowerment service", s)?;
-                progress.note(&format!(
-                    "the empowerment service stopped ({}); restarting it",
-                    describe_status(s)
-                ));
+            Slot::Bridge => self.start_bridge(),
+            Slot::Service => {
                 fulcrum_empowerment::service::clean_dead_nodes();
-                self.start_service()
+                self.begin_service()
             }
         }
     }
 
-    /// Count the restart of a stopped child: an error once the run has used up its
-    /// restarts.
-    fn count_restart(&mut self, what: &str, s: ExitStatus) -> Result<()> {
-        self.restarts += 1;
-        if self.restarts > self.opts.max_restarts {
-            anyhow::bail!(
-                "{what} stopped ({}) and the run used up its {} restarts",
-                describe_status(s),
-                self.opts.max_restarts
-            );
-        }
+    /// Start the empowerment service again without waiting for it: its `ready` line
+    /// comes through the loop.
+    fn begin_service(&mut self) -> Result<()> {
+        let mut cmd = self.service_command();
+        cmd.stdout(Stdio::piped());
+        let mut child = cmd
+            .spawn()
+            .context("cannot start the empowerment service")?;
+        self.service_lines = crate::process::lines(&mut child)?;
+        self.service_deadline = Some(Instant::now() + SERVICE_START_LIMIT);
+        self.watch(&child, Who::Service);
+        self.service = Some(child);
         Ok(())
+    }
+
+    /// The restarted service is ready: the watchdog's clock runs again.
+    fn service_ready(&mut self, progress: &Progress) {
+        self.service_lines = never();
+        self.service_deadline = None;
+        self.watchdog.release();
+        progress.note("the empowerment service is ready again");
+    }
+
+    /// A line from the learner: its progress, or a notice.
+    fn learner_said(&mut self, progress: &mut Progress, line: &str) {
+        if line.starts_with("progress ") {
+            self.watchdog.updated();
+            return learner_line(progress, line);
+        }
+        match parse_notice(line) {
+            Some(Notice::Waiting { actors, .. }) => self.watchdog.waiting(actors),
+            Some(Notice::Stalled {
+                actor,
+                waited_s,
+                refused,
+            }) => progress.note(&if refused {
+                format!("the learner refused a chunk of actor {actor}: it goes on without it until its next chunk")
+            } else {
+                format!("no chunk from actor {actor} for {waited_s:.1} s: the learner goes on without it until its next chunk")
+            }),
+            None => {}
+        }
     }
 
     /// Stop every child: SIGTERM, then SIGKILL after a grace period.

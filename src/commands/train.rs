@@ -21,6 +21,7 @@ pub fn run(a: &TrainArgs) -> Result<()> {
     if a.stall_timeout.is_some() && a.listen.is_none() {
         return bad("--stall-timeout applies to runs with --listen (actors on other hosts)");
     }
+    let (restarts, watchdog_floor) = a.supervision()?;
     let Planned {
         cfg,
         world: w,
@@ -77,7 +78,8 @@ pub fn run(a: &TrainArgs) -> Result<()> {
         listen: a.listen.clone(),
         session_timeout: a.zenoh.session_timeout,
         zenoh_config: a.zenoh.zenoh_config.clone(),
-        max_restarts: a.max_restarts,
+        restarts,
+        watchdog_floor,
         stop_after: a.stop_after_updates,
     };
     let result = supervise(&cfg, &paths, &opts);

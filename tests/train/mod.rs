@@ -13,6 +13,7 @@ use iceoryx2::prelude::*;
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod chaos;
+mod hang;
 mod poison;
 
 /// Small, fast settings: batch = actors * 4 worlds * 32 steps.
