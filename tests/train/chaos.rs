@@ -68,6 +68,10 @@ fn start(dir: &str, fresh: bool) -> Child {
                 &["room", "--actors", "2", "--out", dir][..],
                 // Far more updates than the soak makes; it stops the run with SIGINT.
                 &["--steps", "2560000000", "--checkpoint-every", "20"],
+                // A kill of the same child every 20 s or so on average, for half an hour:
+                // the default budget (5 restarts in 60 s per child) would, by chance, end
+                // the run; the policy has tests of its own.
+                &["--max-restarts", "100"],
                 SMALL,
             ]
             .concat(),
