@@ -47,7 +47,7 @@ pub fn peer(listen: &str) -> Result<()> {
     let ns = format!("rpeer-{}", std::process::id());
     let _serve = ServeChild::start("exp2", &ns)?;
     let world = load_world("exp2")?;
-    let session = open_session(&zargs(), &endpoint, true)?;
+    let session = open_session(&zargs(), &endpoint, true, None)?;
     let (count, bytes) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
     let sub = session
         .declare_subscriber(format!("fulcrum/{RUN}/chunks/*"))
@@ -94,7 +94,7 @@ pub fn peer(listen: &str) -> Result<()> {
         let (stop, ns) = (stop.clone(), ns.clone());
         std::thread::spawn(move || {
             let stats = BridgeStats::default();
-            serve_lookups(&lookups, &ns, &world, &stop, &stats);
+            serve_lookups(&lookups, &ns, &world, &stop, &stats, &|_| Ok(()));
         })
     };
     println!("fulcrum remote peer: ready on {endpoint}");
@@ -167,7 +167,7 @@ pub(super) fn run(addr: Option<&str>, quick: bool, figs: &mut Vec<Figure>) -> Re
         }
     };
     let endpoint = locator(&addr)?;
-    let session = open_session(&zargs(), &endpoint, false)?;
+    let session = open_session(&zargs(), &endpoint, false, None)?;
     let t0 = Instant::now();
     while peer_stats(&session).is_none() {
         ensure!(
