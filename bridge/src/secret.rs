@@ -102,7 +102,15 @@ impl Secret {
         std::fs::File::open("/dev/urandom")
             .and_then(|mut f| f.read_exact(&mut bytes))
             .context("cannot read /dev/urandom for the run's secret")?;
-        let hex: String = bytes.iter().map(|b| format!("{b:02x}")).collect();
+        let s = Secret(bytes.iter().map(|b| format!("{b:02x}")).collect());
+        let path = s.write_dictionary(dir)?;
+        Ok((s, path))
+    }
+
+    /// Write the secret into `dir` as [`SECRET_FILE`], zenoh's user dictionary
+    /// (`fulcrum:<hex>`): owner-only, atomically; returns its path.
+    pub fn write_dictionary(&self, dir: &Path) -> Result<PathBuf> {
+        let path = dir.join(SECRET_FILE);
         // The temporary file is created owner-only before anything is written to it,
         // so the secret is never readable by others, not even for a moment.
         let tmp = dir.join(format!(".{SECRET_FILE}.tmp-{}", std::process::id()));
@@ -113,10 +121,10 @@ impl Secret {
             .mode(0o600)
             .open(&tmp)
             .with_context(|| format!("cannot create {}", tmp.display()))?;
-        let line = format!("{USER}:{hex}\n");
+        let line = format!("{USER}:{}\n", self.0);
         fulcrum_shared::fsio::replace_via(&path, &tmp, line.as_bytes(), false)
             .map_err(|(what, e)| anyhow::Error::new(e).context(what))?;
-        Ok((Secret(hex), path))
+        Ok(path)
     }
 
     /// Set zenoh's user/password authentication: every session presents the secret;
