@@ -20,6 +20,12 @@
 //!   subscriptions to weights and `done`), wildcards included. Those refusals are
 //!   zenoh's and are not counted by the bridge; zenoh drops them silently.
 //!
+//! What this does not stop: a host is known by the name it joined under, and zenoh's
+//! stable API does not say which session sent a sample, so a host that holds the
+//! secret can join under another host's name and send chunks for that host's actors.
+//! The secret is the boundary of trust; these checks keep a broken or confused host
+//! from harming the run, and confine each name to its own actor ids.
+//!
 //! Each refusal of the bridge's own checks is counted in `BridgeStats` and said on
 //! stderr (the first few of each kind); the bridge goes on.
 
