@@ -192,8 +192,11 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
         .unwrap_or_default()
         .last()
         .map_or(0, |r| r.update);
+    // This host takes the secret from a copy of the file instead of the environment.
+    let copy = TempDir::new("loop-secret");
+    std::fs::copy(dir.join("secret"), copy.join("secret")).unwrap();
     let mut host = fulcrum();
-    host.env("FULCRUM_SECRET", &secret)
+    host.env_remove("FULCRUM_SECRET")
         .args([
             "actor-host",
             "--connect",
@@ -203,6 +206,8 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
             "--actors",
             "1",
         ])
+        .arg("--secret-file")
+        .arg(copy.join("secret"))
         .args(["--world", "exp2", "--dir"])
         .arg(&far);
     let mut host = Proc::start(host);

@@ -325,3 +325,41 @@ fn a_rogue_peer_is_refused_at_each_step_and_the_run_goes_on() {
     assert!(rows.last().unwrap().env_steps >= 600_064);
     let _ = std::fs::remove_dir_all(&far);
 }
+
+#[test]
+fn an_actor_host_without_a_usable_secret_stops_before_it_starts_anything() {
+    let far = TempDir::fresh("nosecret");
+    let missing = far.join("no-such-secret");
+    let cases: [(Option<&str>, Option<&Path>, &str); 3] = [
+        (
+            None,
+            None,
+            "joining a run needs its secret: set FULCRUM_SECRET or give --secret-file",
+        ),
+        (
+            Some("not-hex"),
+            None,
+            "FULCRUM_SECRET does not hold a run secret",
+        ),
+        (None, Some(&missing), "cannot read the secret file"),
+    ];
+    for (env, file, says) in cases {
+        let mut c = fulcrum();
+        c.env_remove("FULCRUM_SECRET")
+            .args(["actor-host", "--connect", "127.0.0.1:9", "--name", "x"])
+            .arg("--dir")
+            .arg(far.join("host"));
+        if let Some(v) = env {
+            c.env("FULCRUM_SECRET", v);
+        }
+        if let Some(f) = file {
+            c.arg("--secret-file").arg(f);
+        }
+        let out = c.output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{err}");
+        assert!(err.contains(says) && !err.contains("panicked"), "{err}");
+        assert_eq!(err.trim().lines().count(), 1, "{err}");
+        assert!(!far.join("host").exists());
+    }
+}
