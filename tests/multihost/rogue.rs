@@ -363,3 +363,34 @@ fn an_actor_host_without_a_usable_secret_stops_before_it_starts_anything() {
         assert!(!far.join("host").exists());
     }
 }
+
+#[test]
+fn a_resumed_run_keeps_its_secret() {
+    let dir = TempDir::fresh("resume-secret");
+    let listen = |extra: &[&str]| {
+        let addr = format!("127.0.0.1:{}", free_port());
+        let out = fulcrum()
+            .args(["train", "--listen", &addr, "--stop-after-updates", "2"])
+            .args(extra)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).to_string();
+        assert!(out.status.success(), "{err}");
+        err
+    };
+    let d = dir.display().to_string();
+    let first = listen(&["exp2", "--actors", "1", "--steps", "99999744", "--out", &d]);
+    let secret = std::fs::read_to_string(dir.join("secret")).unwrap();
+    let hex = secret.trim().strip_prefix("fulcrum:").unwrap().to_string();
+    assert!(first.contains(&format!("FULCRUM_SECRET={hex} ")), "{first}");
+    let again = listen(&["--resume", &d]);
+    assert!(again.contains("resuming"), "{again}");
+    // The same secret, in the same owner-only file, said again in the join line.
+    assert_eq!(std::fs::read_to_string(dir.join("secret")).unwrap(), secret);
+    let mode = std::fs::metadata(dir.join("secret"))
+        .unwrap()
+        .permissions()
+        .mode();
+    assert_eq!(mode & 0o777, 0o600);
+    assert!(again.contains(&format!("FULCRUM_SECRET={hex} ")), "{again}");
+}
