@@ -27,6 +27,11 @@ HERE=10.213.$NET.1
 THERE=10.213.$NET.2
 
 die() { echo "two-hosts.sh: $*" >&2; exit 2; }
+# The secret of the run in directory $1, once its bridge has written it.
+run_secret() {
+  for _ in $(seq 600); do [ -s "$1/secret" ] && break; sleep 0.1; done
+  cut -d: -f2 "$1/secret"
+}
 [ "$(id -u)" = 0 ] || die "needs root (network namespaces)"
 command -v ip >/dev/null || die "needs iproute2 (ip)"
 
@@ -76,7 +81,8 @@ case "${1:-}" in
       --stall-timeout 2 --session-timeout 3 &
     learner=$!
     sleep 2
-    "$0" exec "$bin" actor-host --connect "$HERE:7447" --name far --session-timeout 3 \
+    FULCRUM_SECRET=$(run_secret "$out") \
+      "$0" exec "$bin" actor-host --connect "$HERE:7447" --name far --session-timeout 3 \
       --dir /tmp/far &
     host=$!
     sleep 20
@@ -94,6 +100,9 @@ case "${1:-}" in
     "$0" down
     "$0" up
     trap '"$0" down; kill $(jobs -p) 2>/dev/null || true' EXIT
+    # The peer listens beyond loopback, so both ends present a secret of their own.
+    FULCRUM_SECRET=$(od -An -tx1 -N32 /dev/urandom | tr -d ' \n')
+    export FULCRUM_SECRET
     "$0" exec "$bin" __remote-peer --listen "$THERE:7448" > /dev/null &
     sleep 3
     "$bin" bench --remote "$THERE:7448" --json "${FULCRUM_BENCH_JSON:-/dev/null}"
@@ -106,7 +115,8 @@ case "${1:-}" in
     "$bin" train exp2 --actors 1 --listen "$HERE:7447" --steps "$steps" --out "$out" > /dev/null 2>&1 &
     learner=$!
     sleep 1
-    "$0" exec "$bin" actor-host --connect "$HERE:7447" --name far --actors 1 --dir /tmp/far \
+    FULCRUM_SECRET=$(run_secret "$out") \
+      "$0" exec "$bin" actor-host --connect "$HERE:7447" --name far --actors 1 --dir /tmp/far \
       > /dev/null 2>&1 &
     wait "$learner"
     echo "training env steps/s, train exp2 --actors 1 (8 worlds x 128 steps a chunk):"

@@ -503,6 +503,10 @@ pub struct ActorHostArgs {
     /// Restarts of crashed actors allowed.
     #[arg(long, default_value_t = 20)]
     pub max_restarts: u32,
+    /// A file holding the run's secret (a copy of the run directory's `secret`);
+    /// without it the secret is taken from the environment variable FULCRUM_SECRET.
+    #[arg(long, value_name = "FILE")]
+    pub secret_file: Option<PathBuf>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
 }
@@ -539,6 +543,9 @@ pub struct BridgeArgs {
     /// --connect: seconds to wait for the learner, at the start and after a lost link.
     #[arg(long, value_name = "SECS", default_value_t = 600.0)]
     pub give_up: f64,
+    /// --connect: a file holding the run's secret [default: FULCRUM_SECRET].
+    #[arg(long, value_name = "FILE")]
+    pub secret_file: Option<PathBuf>,
     /// Stop when this process is gone.
     #[arg(long, hide = true)]
     pub parent: Option<u32>,

@@ -24,7 +24,8 @@ use zenoh::Wait;
 use crate::error::ZenohError;
 use crate::forward::Forwarder;
 use crate::hello::{join, valid_host_name, write_atomic, Hello, Joined};
-use crate::session::{locator, node, open_session, ZenohOptions};
+use crate::secret::Secret;
+use crate::session::{locator, node, open_session, Auth, ZenohOptions};
 use crate::stats::BridgeStats;
 
 /// What an actor host insists on before it joins.
@@ -36,8 +37,9 @@ pub struct Want<'a> {
     pub run_id: Option<&'a str>,
 }
 
-/// The bridge of an actor host: join, write the run's config and world into `dir`,
-/// then forward until the run is over or SIGINT/SIGTERM.
+/// The bridge of an actor host: join with the run's `secret`, write the run's config
+/// and world into `dir`, then forward until the run is over or SIGINT/SIGTERM. The
+/// session listens on nothing: this host accepts no connection.
 pub fn connect(
     addr: &str,
     dir: &Path,
@@ -45,6 +47,7 @@ pub fn connect(
     want: Want,
     give_up: f64,
     z: &ZenohOptions,
+    secret: &Secret,
 ) -> Result<()> {
     if !valid_host_name(name) {
         return bad(format!(
@@ -52,7 +55,12 @@ pub fn connect(
         ));
     }
     let endpoint = locator(addr)?;
-    let session = open_session(z, &endpoint, false)?;
+    let auth = Auth {
+        secret: secret.clone(),
+        dictionary: None,
+        run: None,
+    };
+    let session = open_session(z, &endpoint, false, Some(&auth))?;
     let hello = join(&session, &endpoint, name, give_up)?;
     let world = check_hello(&hello, want, &endpoint)?;
     let cfg = write_run(dir, &hello)?;

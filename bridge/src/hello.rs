@@ -146,7 +146,11 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
             anyhow::bail!("no learner answered at {endpoint} within {give_up} s");
         }
         if !said {
-            eprintln!("fulcrum bridge: waiting for the learner at {endpoint}");
+            // A wrong secret looks the same from here as a learner not yet up: zenoh
+            // closes the session before any answer (and logs why).
+            eprintln!(
+                "fulcrum bridge: waiting for the learner at {endpoint} (no answer yet: is the run up, and is this its secret?)"
+            );
             said = true;
         }
         std::thread::sleep(Duration::from_millis(200));

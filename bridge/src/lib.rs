@@ -15,6 +15,11 @@
 //! fulcrum/<run>/done                put         the run is over: actor hosts stop
 //! ```
 //!
+//! Who may join: every host presents the run's secret (zenoh's user/password
+//! authentication, [`secret`]); an actor host listens on nothing and scouts for no
+//! one, so it accepts no connection; the learner's side checks everything a host
+//! sends ([`guard`]) and counts what it refuses.
+//!
 //! Backpressure end to end: chunks travel with zenoh's blocking congestion control,
 //! and the learner's side hands each chunk to the learner through an iceoryx2
 //! publisher that waits while the learner's queue is full. A learner that stops
@@ -31,6 +36,8 @@
 //!
 //! | module | what it owns |
 //! |---|---|
+//! | [`secret`] | the run's secret and zenoh's user/password authentication (why this one) |
+//! | [`guard`] | what the learner's side lets through from other hosts |
 //! | [`session`] | the zenoh session and its settings; the bridge's iceoryx2 node |
 //! | [`hello`] | joining: the hello, the hosts file, actor ids, an actor host's directory |
 //! | [`mod@listen`] | the learner's side |
@@ -42,8 +49,10 @@
 pub mod connect;
 pub mod error;
 pub mod forward;
+pub mod guard;
 pub mod hello;
 pub mod listen;
+pub mod secret;
 pub mod session;
 pub mod stats;
 
@@ -52,7 +61,8 @@ pub use error::ZenohError;
 pub use forward::Forwarder;
 pub use hello::{actor_id, default_dir, Hello, Joined};
 pub use listen::{listen, serve_lookups};
-pub use session::{locator, open_session, ZenohOptions};
+pub use secret::{Secret, SECRET_ENV, SECRET_FILE};
+pub use session::{is_loopback, locator, open_session, Auth, ZenohOptions};
 pub use stats::BridgeStats;
 /// The zenoh this crate is built with (the binary's remote benchmark uses it directly).
 pub use zenoh;

@@ -1,6 +1,7 @@
-//! The learner's side: the bridge that listens for actor hosts, answers their hello,
-//! hands their chunks to the learner, sends the weights out and answers lookups with
-//! the run's service.
+//! The learner's side: the bridge that listens for actor hosts (each must present the
+//! run's secret, [`crate::secret`]), answers their hello, hands their chunks to the
+//! learner, sends the weights out and answers lookups with the run's service, after
+//! the checks of [`crate::guard`].
 
 use std::io::Write;
 use std::path::Path;
@@ -8,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use anyhow::Result;
 use fulcrum_empowerment::service::Client;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::process::STOP;
@@ -24,8 +25,10 @@ use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;
 
 use crate::error::ZenohError;
+use crate::guard::{Guard, Hosts};
 use crate::hello::{read_hosts, valid_host_name, write_hosts, Hello};
-use crate::session::{locator, node, open_session, ZenohOptions};
+use crate::secret::Secret;
+use crate::session::{locator, node, open_session, Auth, ZenohOptions};
 use crate::stats::BridgeStats;
 
 /// The bridge on the learner's host, until SIGINT/SIGTERM (or the supervisor goes).
@@ -36,13 +39,21 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     let cfg = RunConfig::load(&paths.config()).map_err(fulcrum_run::BadRequest)?;
     let world = fulcrum_shared::load_world(&cfg.world)?;
     let endpoint = locator(addr)?;
-    let session = open_session(z, &endpoint, true)?;
+    let (secret, secret_file) = Secret::for_run(dir)?;
+    let auth = Auth {
+        secret,
+        dictionary: Some(secret_file),
+        run: Some(ns.to_string()),
+    };
+    let session = open_session(z, &endpoint, true, Some(&auth))?;
     let stats = Arc::new(BridgeStats::default());
-    let hello_q = answer_hellos(&session, &paths, &cfg, &world, ns)?;
+    let hosts: Hosts = Arc::new(Mutex::new(read_hosts(&paths.host_names())));
+    let guard = Guard::new(ns, &cfg, &world, hosts.clone());
+    let hello_q = answer_hellos(&session, &paths, &cfg, &world, ns, hosts)?;
 
     let stop = Arc::new(AtomicBool::new(false));
     let mut threads = vec![
-        chunks_in(&session, ns, &stop, &stats)?,
+        chunks_in(&session, ns, &guard, &stop, &stats)?,
         weights_out(&session, ns, &stop, &stats)?,
     ];
     if cfg.empowerment {
@@ -53,7 +64,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
             .map_err(|e| ZenohError::new("queryable", e))?;
         let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
         threads.push(std::thread::spawn(move || -> Result<()> {
-            serve_lookups(&q, &ns, &world, &stop, &stats);
+            serve_lookups(&q, &ns, &world, &stop, &stats, &|k| guard.lookup(k));
             Ok(())
         }));
     }
@@ -80,6 +91,13 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     }
 }
 
+/// The run's config as a host receives it: the world named, not its path here.
+fn config_for_hosts(cfg: &RunConfig, world: &World) -> String {
+    let mut c = cfg.clone();
+    c.world = world.name.clone();
+    c.to_toml()
+}
+
 /// Answers `fulcrum/hello`: a name gets the same host index on every join (and after a
 /// resume), kept in the run's hosts file.
 fn answer_hellos(
@@ -88,8 +106,8 @@ fn answer_hellos(
     cfg: &RunConfig,
     world: &World,
     ns: &str,
+    hosts: Hosts,
 ) -> Result<zenoh::query::Queryable<()>> {
-    let hosts = Arc::new(Mutex::new(read_hosts(&paths.host_names())));
     let hello = Hello {
         run: ns.to_string(),
         run_tag: traj::run_tag(ns),
@@ -97,8 +115,7 @@ fn answer_hellos(
         world_source: world.source.clone(),
         world_hash: format!("{:016x}", world.content_hash()),
         world_name: world.name.clone(),
-        config: std::fs::read_to_string(paths.config())
-            .with_context(|| format!("cannot read {}", paths.config().display()))?,
+        config: config_for_hosts(cfg, world),
         host: 0,
     };
     let names_file = paths.host_names();
@@ -140,6 +157,7 @@ fn answer_hellos(
 fn chunks_in(
     session: &zenoh::Session,
     ns: &str,
+    guard: &Guard,
     stop: &Arc<AtomicBool>,
     stats: &Arc<BridgeStats>,
 ) -> Result<std::thread::JoinHandle<Result<()>>> {
@@ -149,6 +167,7 @@ fn chunks_in(
         .wait()
         .map_err(|e| ZenohError::new("subscriber", e))?;
     let (ns, stop, stats) = (ns.to_string(), stop.clone(), stats.clone());
+    let guard = guard.clone();
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
@@ -179,20 +198,18 @@ fn chunks_in(
             let Ok(Some(sample)) = sub.recv_timeout(Duration::from_millis(100)) else {
                 continue;
             };
+            let name = sample.key_expr().as_str().rsplit('/').next().unwrap_or("");
             let bytes = sample.payload().to_bytes();
-            let Some(h) = ChunkHeader::from_wire(&bytes) else {
-                stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
-                continue;
+            // Checked whole before any shared memory is loaned for it.
+            let h = match guard.chunk(name, &bytes) {
+                Ok(h) => h,
+                Err(why) => {
+                    let what = format!("a chunk of {} bytes from '{name}'", bytes.len());
+                    stats.refuse(&stats.refused_chunks, &what, why);
+                    continue;
+                }
             };
             let body = &bytes[ChunkHeader::WIRE_BYTES..];
-            if body.len() as u64 != h.len {
-                tracing::warn!(
-                    actor = h.actor,
-                    "a chunk of the wrong length from another host"
-                );
-                stats.chunks_lost.fetch_add(1, Ordering::Relaxed);
-                continue;
-            }
             let mut s = publisher
                 .loan_slice_uninit(body.len())
                 .map_err(|e| IpcError::new("loan", e))?;
@@ -262,13 +279,16 @@ fn weights_out(
     }))
 }
 
-/// Answer zenoh lookups with the run's local service: up to `MAX_IN_FLIGHT` at a time.
+/// Answer zenoh lookups with the run's local service: up to `MAX_IN_FLIGHT` at a time;
+/// a request that does not parse, or whose kind `allowed` refuses, is answered with an
+/// error and counted.
 pub fn serve_lookups(
     q: &zenoh::query::Queryable<zenoh::handlers::FifoChannelHandler<zenoh::query::Query>>,
     ns: &str,
     world: &World,
     stop: &AtomicBool,
     stats: &BridgeStats,
+    allowed: &dyn Fn(u32) -> Result<(), &'static str>,
 ) {
     let mut client: Option<Client> = None;
     let mut req = EmpRequest::boxed();
@@ -281,10 +301,18 @@ pub fn serve_lookups(
         let mut next = Some(first);
         while let Some(query) = next.take() {
             let Some(bytes) = query.payload().map(|p| p.to_bytes()) else {
-                let _ = query.reply_err("a lookup without a request").wait();
+                let why = "a lookup without a request";
+                stats.refuse(&stats.refused_lookups, "a lookup", why);
+                let _ = query.reply_err(why).wait();
                 continue;
             };
             if let Err(why) = wire::read_request(&bytes, &mut req) {
+                stats.refuse(&stats.refused_lookups, "a lookup", &why);
+                let _ = query.reply_err(why).wait();
+                continue;
+            }
+            if let Err(why) = allowed(req.kind) {
+                stats.refuse(&stats.refused_lookups, "a lookup", why);
                 let _ = query.reply_err(why).wait();
                 continue;
             }

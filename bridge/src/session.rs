@@ -10,6 +10,8 @@ use iceoryx2::prelude::*;
 use zenoh::Wait;
 
 use crate::error::ZenohError;
+use crate::guard::access_control;
+use crate::secret::Secret;
 
 /// How a bridge's zenoh session behaves.
 #[derive(Debug, Clone)]
@@ -36,9 +38,43 @@ pub fn locator(addr: &str) -> Result<String> {
     Ok(format!("tcp/{addr}"))
 }
 
+/// Whether a locator names a loopback address (`127.x.x.x`, `[::1]`, `localhost`).
+pub fn is_loopback(endpoint: &str) -> bool {
+    let addr = endpoint.split_once('/').map_or(endpoint, |(_, a)| a);
+    let host = addr.rsplit_once(':').map_or(addr, |(h, _)| h);
+    let host = host.trim_start_matches('[').trim_end_matches(']');
+    host == "localhost"
+        || host
+            .parse::<std::net::IpAddr>()
+            .is_ok_and(|ip| ip.is_loopback())
+}
+
+/// How a session proves it belongs to the run: the secret it presents, and (the
+/// listening side) the dictionary it checks joining hosts against.
+#[derive(Debug, Clone)]
+pub struct Auth {
+    pub secret: Secret,
+    pub dictionary: Option<PathBuf>,
+    /// The listening side's run namespace: zenoh refuses what other hosts may not send
+    /// ([`crate::guard::access_control`]).
+    pub run: Option<String>,
+}
+
 /// Open a zenoh session: a peer that listens on or connects to `endpoint`, no
-/// multicast scouting, the link lease from the session timeout.
-pub fn open_session(z: &ZenohOptions, endpoint: &str, listen: bool) -> Result<zenoh::Session> {
+/// multicast or gossip scouting, the link lease from the session timeout. The
+/// connecting side listens on nothing: it accepts no connection from anyone. Listening
+/// on an address other than loopback without authentication is refused.
+pub fn open_session(
+    z: &ZenohOptions,
+    endpoint: &str,
+    listen: bool,
+    auth: Option<&Auth>,
+) -> Result<zenoh::Session> {
+    if listen && auth.is_none() && !is_loopback(endpoint) {
+        return bad(format!(
+            "refusing to listen on {endpoint} without authentication: only a loopback address may be used without the run's secret"
+        ));
+    }
     if !(z.session_timeout.is_finite() && z.session_timeout >= 0.5) {
         return bad(format!(
             "a session timeout of {} s is too short: it must be at least 0.5 seconds",
@@ -60,9 +96,12 @@ pub fn open_session(z: &ZenohOptions, endpoint: &str, listen: bool) -> Result<ze
     };
     set("mode", "\"peer\"".into())?;
     set("scouting/multicast/enabled", "false".into())?;
+    // Hosts are not told about one another: each talks to the learner's host only.
+    set("scouting/gossip/enabled", "false".into())?;
     if listen {
         set("listen/endpoints", loc)?;
     } else {
+        set("listen/endpoints", "[]".into())?;
         set("connect/endpoints", loc)?;
         // Keep trying while the learner's host is away (zenoh's default for peers,
         // stated here because the link-cut recovery depends on it).
@@ -78,6 +117,14 @@ pub fn open_session(z: &ZenohOptions, endpoint: &str, listen: bool) -> Result<ze
         "transport/link/tx/queue/congestion_control/block/wait_before_close",
         (lease_ms * 1000).to_string(),
     )?;
+    if let Some(ns) = auth.and_then(|a| a.run.as_deref()) {
+        set("access_control", access_control(ns).to_string())?;
+    }
+    if let Some(a) = auth {
+        a.secret
+            .configure(&mut c, a.dictionary.as_deref())
+            .map_err(|e| ZenohError::new("configuration transport/auth/usrpwd", e))?;
+    }
     match zenoh::open(c).wait() {
         Ok(s) => Ok(s),
         Err(e) if listen => bad(format!("cannot listen on {endpoint}: {e}")),

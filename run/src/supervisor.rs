@@ -300,8 +300,13 @@ impl Supervisor {
             }
             _ => addr.clone(),
         };
+        // The bridge wrote the run's secret (owner-only) before it listened; said once.
+        let secret_file = self.paths.dir.join("secret");
+        let secret = std::fs::read_to_string(&secret_file).unwrap_or_default();
+        let secret = secret.trim().trim_start_matches("fulcrum:");
         eprintln!(
-            "fulcrum train: actors on other hosts may join: fulcrum actor-host --connect {hint}"
+            "fulcrum train: actors on other hosts may join: FULCRUM_SECRET={secret} fulcrum actor-host --connect {hint} (or --secret-file with a copy of {}; keep it private)",
+            secret_file.display()
         );
         self.watch(&child, Who::Bridge);
         self.bridge = Some(child);

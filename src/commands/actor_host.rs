@@ -37,6 +37,9 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             fulcrum_shared::traj::MAX_ACTORS
         ));
     }
+    // Checked here so that a host without the secret stops before it starts anything;
+    // the bridge gets it through its environment, never its command line.
+    let secret = super::bridge::secret(a.secret_file.as_deref())?;
     let name = a.name.clone().unwrap_or_else(hostname);
     let dir = a.dir.clone().unwrap_or_else(|| default_dir(&name));
     let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
@@ -69,7 +72,10 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         a.connect
     );
     let mut cmd = Command::new(&exe);
-    cmd.args(&args).stdin(Stdio::null()).process_group(0);
+    cmd.args(&args)
+        .env(fulcrum_bridge::SECRET_ENV, secret.expose())
+        .stdin(Stdio::null())
+        .process_group(0);
     // Wait for the bridge to join.
     let (mut bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, Joined::parse)? {
         Ready::Ready(bridge, joined, rx) => (bridge, joined, rx),

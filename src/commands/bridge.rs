@@ -2,7 +2,9 @@
 //! and the other hosts of a run; the work is in [`fulcrum_bridge`].
 
 use anyhow::Result;
-use fulcrum_bridge::{connect, listen, Want};
+use std::path::Path;
+
+use fulcrum_bridge::{connect, listen, Secret, Want, SECRET_ENV, SECRET_FILE};
 use fulcrum_run::bad;
 use fulcrum_run::process::{die_with_parent, hostname, install_signal_handlers};
 
@@ -27,8 +29,27 @@ pub fn run(a: &BridgeArgs) -> Result<()> {
                 world: a.world.as_deref(),
                 run_id: a.run_id.as_deref(),
             };
-            connect(addr, &a.run, &host, want, a.give_up, &a.zenoh.options())
+            let secret = secret(a.secret_file.as_deref())?;
+            connect(
+                addr,
+                &a.run,
+                &host,
+                want,
+                a.give_up,
+                &a.zenoh.options(),
+                &secret,
+            )
         }
         (None, None) => bad("bridge needs --listen ADDR or --connect ADDR"),
+    }
+}
+
+/// The run's secret for an actor host: from `--secret-file`, else from the environment.
+pub fn secret(file: Option<&Path>) -> Result<Secret> {
+    match Secret::from_file_or_env(file)? {
+        Some(s) => Ok(s),
+        None => bad(format!(
+            "joining a run needs its secret: set {SECRET_ENV} or give --secret-file (a copy of the run directory's '{SECRET_FILE}' file)"
+        )),
     }
 }

@@ -28,7 +28,9 @@ use fulcrum_shared::traj::ChunkHeader;
 
 use super::service::{sample_states, ServeChild};
 use super::{percentile, Figure};
-use fulcrum_bridge::{locator, open_session, serve_lookups, BridgeStats, Forwarder, ZenohOptions};
+use fulcrum_bridge::{
+    locator, open_session, serve_lookups, Auth, BridgeStats, Forwarder, Secret, ZenohOptions,
+};
 use fulcrum_run::process::{install_signal_handlers, STOP};
 
 const RUN: &str = "bench";
@@ -47,7 +49,23 @@ pub fn peer(listen: &str) -> Result<()> {
     let ns = format!("rpeer-{}", std::process::id());
     let _serve = ServeChild::start("exp2", &ns)?;
     let world = load_world("exp2")?;
-    let session = open_session(&zargs(), &endpoint, true)?;
+    // Beyond loopback the peer demands a secret (FULCRUM_SECRET, the same at both ends).
+    let dict_dir = std::env::temp_dir().join(format!("fulcrum-peer-{}", std::process::id()));
+    let auth = match Secret::from_file_or_env(None)? {
+        Some(secret) => {
+            std::fs::create_dir_all(&dict_dir)?;
+            let dictionary = Some(secret.write_dictionary(&dict_dir)?);
+            Some(Auth {
+                secret,
+                dictionary,
+                run: None,
+            })
+        }
+        None => None,
+    };
+    let session = open_session(&zargs(), &endpoint, true, auth.as_ref());
+    let _ = std::fs::remove_dir_all(&dict_dir); // zenoh has read it
+    let session = session?;
     let (count, bytes) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
     let sub = session
         .declare_subscriber(format!("fulcrum/{RUN}/chunks/*"))
@@ -94,7 +112,7 @@ pub fn peer(listen: &str) -> Result<()> {
         let (stop, ns) = (stop.clone(), ns.clone());
         std::thread::spawn(move || {
             let stats = BridgeStats::default();
-            serve_lookups(&lookups, &ns, &world, &stop, &stats);
+            serve_lookups(&lookups, &ns, &world, &stop, &stats, &|_| Ok(()));
         })
     };
     println!("fulcrum remote peer: ready on {endpoint}");
@@ -167,7 +185,12 @@ pub(super) fn run(addr: Option<&str>, quick: bool, figs: &mut Vec<Figure>) -> Re
         }
     };
     let endpoint = locator(&addr)?;
-    let session = open_session(&zargs(), &endpoint, false)?;
+    let auth = Secret::from_file_or_env(None)?.map(|secret| Auth {
+        secret,
+        dictionary: None,
+        run: None,
+    });
+    let session = open_session(&zargs(), &endpoint, false, auth.as_ref())?;
     let t0 = Instant::now();
     while peer_stats(&session).is_none() {
         ensure!(
