@@ -12,6 +12,8 @@ use iceoryx2::prelude::*;
 
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
+mod storage;
+
 /// Small, fast settings: batch = actors * 4 worlds * 32 steps.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
 
