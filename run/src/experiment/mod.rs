@@ -239,10 +239,11 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
     // started again nor cleared.
     for j in &todo {
         if let Some(pid) = crate::lock::DirLock::holder(&j.dir) {
-            return bad(format!(
-                "{} is in use by another fulcrum invocation (pid {pid}, or the processes it started); wait for it to end or stop it",
-                j.dir.display()
-            ));
+            return bad(crate::lock::LockError::Held {
+                dir: j.dir.clone(),
+                pid,
+            }
+            .to_string());
         }
     }
     eprintln!(
