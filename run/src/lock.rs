@@ -12,6 +12,11 @@
 //! close-on-exec: see [`DirLock::inherit`]), so the lock outlives a killed supervisor
 //! exactly as long as its learner, actors and service still run (they die with it
 //! within seconds, `PR_SET_PDEATHSIG`), and no new run can start under them.
+//!
+//! Who locks: `train` (a new run, `--out`, `--resume`) and `experiment` (its
+//! directory; and it never clears a run directory someone else holds). `record` does
+//! not: it only reads the checkpoint, which is always whole (replaced by rename), and
+//! looking at a policy while it trains is a use, not a conflict.
 
 use std::fs::{File, OpenOptions};
 use std::io::{Read, Seek, SeekFrom, Write};

@@ -319,7 +319,9 @@ kill -INT $P; wait $P
 }
 
 /// A container's default `/dev/shm` of 64 MiB (a private tmpfs of that size, and a
-/// private `/tmp/iceoryx2`): exp2 and exp1-tree with their default settings are refused
+/// private `/tmp/iceoryx2`: iceoryx2 keeps its node and service descriptions there, and
+/// other processes on the machine must not see services whose memory they cannot
+/// reach): exp2 and exp1-tree with their default settings are refused
 /// before anything starts (the empowerment service's responses alone take about 74 MiB),
 /// one sentence with what is needed and what is free; a run without empowerment
 /// (room, defaults but one actor) fits and finishes.
