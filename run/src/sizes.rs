@@ -93,6 +93,7 @@ pub fn shared_memory(cfg: &RunConfig, w: &World) -> SharedMemory {
     };
     let chunk = layout.bytes() as u64;
     let chunk_sample = chunk + std::mem::size_of::<ChunkHeader>() as u64 + SAMPLE_OVERHEAD;
+    // Subscribers x (queued + borrowed, both CHUNK_QUEUE) + no history + loaned.
     let chunk_samples = (CHUNK_SUBSCRIBERS * 2 * CHUNK_QUEUE + CHUNKS_LOANED) as u64;
     // With actors on other hosts the bridge publishes their chunks too: one more
     // publisher, sized like an actor's.
@@ -103,10 +104,12 @@ pub fn shared_memory(cfg: &RunConfig, w: &World) -> SharedMemory {
         .map(|(_, dims)| dims.iter().product::<usize>() as u64)
         .sum();
     let weights_sample = 4 * floats + std::mem::size_of::<WeightsHeader>() as u64 + SAMPLE_OVERHEAD;
+    // Subscribers x (queued + borrowed, both WEIGHTS_BUFFER) + a history of 1 + loaned.
     let weights_samples = (WEIGHTS_SUBSCRIBERS * 2 * WEIGHTS_BUFFER + 1 + WEIGHTS_LOANED) as u64;
     let service = if cfg.empowerment {
         let (clients, in_flight) = (MAX_CLIENTS as u64, MAX_IN_FLIGHT as u64);
         let response = std::mem::size_of::<EmpResponse>() as u64 + SAMPLE_OVERHEAD;
+        // Requests carry a u128 user header (the client's id).
         let request = std::mem::size_of::<EmpRequest>() as u64 + 16 + SAMPLE_OVERHEAD;
         let responses =
             clients * 2 * in_flight * (in_flight + RESPONSES_BORROWED + RESPONSES_LOANED);

@@ -173,8 +173,10 @@ P=$!
 # Once the run appends rows again, take every free block.
 i=0
 while [ "$(wc -l <"$D/run/metrics.csv")" -lt 4 ] && [ $i -lt 600 ]; do sleep 0.05; i=$((i+1)); done
-A=$(($(stat -f -c '%a*%S' "$D")))
-fallocate -l "$A" "$D/filler" || exit 97
+# (written until the disk is full: the run may take a block between a look at the
+# free space and an allocation of all of it)
+dd if=/dev/zero of="$D/filler" bs=4096 2>/dev/null
+df -B1 --output=avail "$D" | tail -1 >"$O/avail-after-fill"
 wait $P; echo $? >"$O/rc2"
 cp "$D/run/metrics.csv" "$O/metrics-at-failure.csv"
 rm "$D/filler"
@@ -198,6 +200,11 @@ cp "$D/run/metrics.csv" "$O/metrics.csv"
     );
     assert_eq!(code(&out, "rc1"), 0, "{}", read(&out.join("err1")));
     let err2 = read(&out.join("err2"));
+    assert_eq!(
+        read(&out.join("avail-after-fill")).trim(),
+        "0",
+        "the disk was full"
+    );
     assert_eq!(code(&out, "rc2"), 1, "{err2}");
     assert!(
         err2.contains("metrics.csv") && err2.contains("No space left on device"),
