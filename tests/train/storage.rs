@@ -430,6 +430,12 @@ fn a_start_that_never_checkpointed_is_redone_without_duplicate_rows() {
     crate::util::signal(learner[0], "-KILL");
     let (s, err, _) = finish(c, Duration::from_secs(30));
     assert_eq!(s.code(), Some(1), "{err}");
+    assert!(
+        err.contains(&format!(
+            "before its first checkpoint; `fulcrum train --resume {d}` starts the run over"
+        )),
+        "{err}"
+    );
     assert!(!dir.join("checkpoints/latest.safetensors").exists());
     let before = read_metrics(&dir.join("metrics.csv")).unwrap().len();
     assert!((5..200).contains(&before), "{before} rows");
