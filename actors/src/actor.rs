@@ -117,7 +117,7 @@ impl Ports {
         let publisher = tsvc
             .publisher_builder()
             .initial_max_slice_len(bytes)
-            .max_loaned_samples(2)
+            .max_loaned_samples(traj::CHUNKS_LOANED)
             .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
             .set_backpressure_handler(move |info: &iceoryx2::port::BackpressureInfo| {
                 // The learner's queue is full: wait without burning a core, clean up after

@@ -1,5 +1,11 @@
 //! `metrics.csv`: one row per update, written by the learner and read back by
 //! `fulcrum train` and `fulcrum experiment`.
+//!
+//! Durability: a row is appended with one `write` ([`append_row`]), so a failure
+//! (a full disk) leaves at most one torn row, which a resume drops; the rows are synced
+//! to disk ([`sync_rows`]) before each checkpoint is written, so a checkpoint never
+//! refers to an update whose row a crash can lose. A resume keeps the rows up to the
+//! checkpoint ([`trim_metrics`]); a start without a checkpoint keeps none.
 
 use std::path::Path;
 
@@ -180,6 +186,25 @@ pub fn read_metrics(path: &Path) -> std::io::Result<Vec<MetricsRow>> {
 /// Open `metrics.csv` for appending, writing the header if it is new.
 pub(crate) fn open_metrics(path: &Path) -> Result<std::fs::File, LearnerError> {
     open_csv(path, METRICS_COLUMNS)
+}
+
+/// Append `row` to the open `metrics.csv` at `path` in one write; the error names the
+/// file and says why (a full disk: "No space left on device").
+pub(crate) fn append_row(
+    file: &mut std::fs::File,
+    path: &Path,
+    row: &MetricsRow,
+) -> Result<(), LearnerError> {
+    use std::io::Write;
+    let line = row.csv() + "\n";
+    file.write_all(line.as_bytes())
+        .map_err(|e| LearnerError::Run(format!("cannot append to {}: {e}", path.display())))
+}
+
+/// Sync the rows appended so far to disk (before a checkpoint refers to them).
+pub(crate) fn sync_rows(file: &std::fs::File, path: &Path) -> Result<(), LearnerError> {
+    file.sync_data()
+        .map_err(|e| LearnerError::Run(format!("cannot sync {}: {e}", path.display())))
 }
 
 /// Keep the header and the rows of updates `<= upto` (rows written after the last

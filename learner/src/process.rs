@@ -22,7 +22,6 @@
 //!    exactly where the checkpoint was taken).
 
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -51,7 +50,7 @@ use crate::error::LearnerError;
 use crate::hosts::{HostsLog, HOSTS_COLUMNS};
 use crate::intake::take_chunk;
 use crate::local::update;
-use crate::metrics::{open_metrics, trim_metrics, MetricsRow};
+use crate::metrics::{append_row, open_metrics, sync_rows, trim_metrics, MetricsRow};
 use crate::net::Net;
 use crate::paths::RunPaths;
 use crate::watch::{ensure_finite, Fault, LocalStall, Notice};
@@ -132,7 +131,7 @@ impl Ports {
         let publisher = psvc
             .publisher_builder()
             .initial_max_slice_len(weights)
-            .max_loaned_samples(2)
+            .max_loaned_samples(traj::WEIGHTS_LOANED)
             .create()
             .map_err(|e| IpcError::new("publisher", e))?;
         let pwake = traj::wake_service(&node, &names.policy_wake).map_err(LearnerError::from)?;
@@ -267,6 +266,10 @@ impl<'a> Learner<'a> {
             trim_metrics(&paths.metrics(), ctr.update)?;
             trim_rows(&paths.hosts(), HOSTS_COLUMNS, ctr.update)?;
             tracing::info!(update = ctr.update, "resumed from checkpoint");
+        } else {
+            // Rows of an earlier start that failed before its first checkpoint.
+            trim_metrics(&paths.metrics(), 0)?;
+            trim_rows(&paths.hosts(), HOSTS_COLUMNS, 0)?;
         }
         let layout = ChunkLayout {
             envs: cfg.envs_per_actor,
@@ -677,14 +680,7 @@ impl<'a> Learner<'a> {
                 .count() as u64,
         };
         self.last = now;
-        writeln!(self.metrics, "{}", row.csv())
-            .and_then(|_| self.metrics.flush())
-            .map_err(|e| {
-                LearnerError::Run(format!(
-                    "cannot append to {}: {e}",
-                    self.paths.metrics().display()
-                ))
-            })?;
+        append_row(&mut self.metrics, &self.paths.metrics(), &row)?;
         if let Some(log) = self.hosts.as_mut() {
             let per_chunk = (self.layout.envs * self.layout.steps) as u64;
             log.append(self.paths, self.ctr.update, chunks, per_chunk, &self.roster)?;
@@ -722,6 +718,7 @@ impl<'a> Learner<'a> {
         for (k, v) in &self.env_blobs {
             extra.blobs.insert(k.clone(), v.clone());
         }
+        sync_rows(&self.metrics, &self.paths.metrics())?;
         let path = self.paths.checkpoint();
         if let Some(dir) = path.parent() {
             std::fs::create_dir_all(dir)

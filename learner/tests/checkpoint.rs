@@ -125,7 +125,11 @@ fn round_trip_is_bit_exact() {
     assert_eq!(adam.step, 2);
     let ex = extra();
     save(&path, &a, &adam, &ex).expect("save");
-    assert!(!dir.0.join("latest.safetensors.tmp").exists());
+    let names: Vec<_> = fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["latest.safetensors"], "no temporary file left");
 
     let b = net(6, 2);
     let mut adam_b = Adam::new(&b).expect("adam");
@@ -497,10 +501,13 @@ fn failed_save_keeps_the_old_checkpoint() {
     let mut ex2 = Extra::default();
     ex2.counters.insert("env_steps".into(), 2);
 
-    // A stale temp file from a crashed save does not matter.
-    fs::write(sub.join("latest.safetensors.tmp"), b"junk").unwrap();
-    save(&path, &a, &adam, &ex).expect("save over a stale temp file");
-    assert!(!sub.join("latest.safetensors.tmp").exists());
+    // A stale temp file from a crashed save (its writer's pid is over any pid_max)
+    // does not matter, and is what the cleaning at a run's start removes.
+    let stale = sub.join(".latest.safetensors.tmp-999999999-0");
+    fs::write(&stale, b"junk").unwrap();
+    save(&path, &a, &adam, &ex).expect("save beside a stale temp file");
+    assert_eq!(fulcrum_shared::fsio::remove_stale_temps(&sub).unwrap(), 1);
+    assert!(!stale.exists());
 
     fs::set_permissions(&sub, fs::Permissions::from_mode(0o555)).unwrap();
     // Root (or some file systems) ignore the mode: then the failure cannot be provoked.
@@ -514,7 +521,7 @@ fn failed_save_keeps_the_old_checkpoint() {
         assert!(matches!(e, CheckpointError::Write { .. }), "{e}");
         let msg = e.to_string();
         assert!(msg.contains(&path.display().to_string()), "{msg}");
-        assert!(msg.contains("latest.safetensors.tmp"), "{msg}");
+        assert!(msg.contains(".latest.safetensors.tmp-"), "{msg}");
         let target = net(6, 3);
         let mut adam_t = Adam::new(&target).unwrap();
         let got = load(&path, &target, &mut adam_t).expect("old file still loads");
@@ -524,26 +531,22 @@ fn failed_save_keeps_the_old_checkpoint() {
         eprintln!("read-only directory not enforced (root?): skipping the failure check");
     }
 
-    // Failures that root cannot override: the temp path is a directory (cannot be
-    // created as a file), and the target is a non-empty directory (cannot be renamed over).
+    // A failure root cannot override: the target is a non-empty directory (cannot be
+    // renamed over).
     save(&path, &a, &adam, &ex).unwrap();
-    let tmp = sub.join("latest.safetensors.tmp");
-    fs::create_dir(&tmp).unwrap();
-    fs::write(tmp.join("x"), b"x").unwrap();
-    let e = save(&path, &other, &Adam::new(&other).unwrap(), &ex2).expect_err("temp is a dir");
-    assert!(matches!(e, CheckpointError::Write { .. }), "{e}");
-    assert!(e.to_string().contains("latest.safetensors.tmp"), "{e}");
-    fs::remove_dir_all(&tmp).unwrap();
-    let target = net(6, 3);
-    let got = load(&path, &target, &mut Adam::new(&target).unwrap()).expect("old file loads");
-    assert_eq!(got, ex);
-    assert_eq!(bits(&target.flat().unwrap()), bits(&a.flat().unwrap()));
     let dir_target = sub.join("adir");
     fs::create_dir(&dir_target).unwrap();
     fs::write(dir_target.join("x"), b"x").unwrap();
     let e = save(&dir_target, &a, &adam, &ex).expect_err("rename over a directory");
     assert!(e.to_string().contains("adir"), "{e}");
-    assert!(!sub.join("adir.tmp").exists(), "temp file left behind");
+    assert!(
+        fs::read_dir(&sub).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .contains(".tmp-")),
+        "temp file left behind"
+    );
 
     // A missing directory: an error naming the path, nothing created.
     let missing = dir.0.join("nope").join("c.safetensors");
@@ -651,4 +654,47 @@ fn consistent_files_with_wrong_contents_are_refused() {
         let msg = refused(&path, 6).to_string();
         assert!(msg.contains(want), "{msg}\n  should contain: {want}");
     }
+}
+
+/// Two writers of one checkpoint at once (what two invocations on one run directory
+/// did): each has its own temporary file, so the file is always one whole checkpoint
+/// of one of them, never a mix (a shared temporary name let one truncate the other's).
+#[test]
+fn concurrent_saves_never_mix_two_checkpoints() {
+    let dir = TempDir::new("concurrent");
+    let path = dir.0.join("latest.safetensors");
+    let nets = [net(6, 1), net(6, 2)];
+    let flats: Vec<Vec<u32>> = nets.iter().map(|n| bits(&n.flat().unwrap())).collect();
+    std::thread::scope(|s| {
+        for (i, n) in nets.iter().enumerate() {
+            let path = path.clone();
+            s.spawn(move || {
+                let adam = Adam::new(n).unwrap();
+                let mut ex = Extra::default();
+                ex.counters.insert("writer".into(), i as u64);
+                for _ in 0..40 {
+                    save(&path, n, &adam, &ex).expect("concurrent save");
+                }
+            });
+        }
+        for _ in 0..200 {
+            // Once there, the file is always one whole checkpoint.
+            if !path.exists() {
+                continue;
+            }
+            let t = net(6, 3);
+            let got = load(&path, &t, &mut Adam::new(&t).unwrap()).expect("a whole checkpoint");
+            let w = *got.counters.get("writer").unwrap() as usize;
+            assert_eq!(bits(&t.flat().unwrap()), flats[w], "a mixed checkpoint");
+        }
+    });
+    let t = net(6, 3);
+    let got = load(&path, &t, &mut Adam::new(&t).unwrap()).expect("whole at the end");
+    let w = *got.counters.get("writer").unwrap() as usize;
+    assert_eq!(bits(&t.flat().unwrap()), flats[w]);
+    let names: Vec<_> = fs::read_dir(&dir.0)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["latest.safetensors"], "no temporary file left");
 }

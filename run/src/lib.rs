@@ -11,6 +11,8 @@
 //! |---|---|
 //! | [`plan`] | a request -> a checked `RunConfig`, its world and run directory |
 //! | [`select`] | reading a world, object set, tool or inventory named in a request |
+//! | [`lock`] | one invocation per run or experiment directory (`flock` on `.lock`) |
+//! | [`sizes`] | the shared memory a run needs, checked before it starts |
 //! | [`supervisor`] | the run's child processes, restarts, progress, shutdown |
 //! | [`child`] | the learner and actor processes as the supervisor starts them |
 //! | [`process`] | the one stop flag, signals, die-with-parent, spawn-until-ready |
@@ -27,12 +29,14 @@ pub mod child;
 pub mod curve;
 pub mod error;
 pub mod experiment;
+pub mod lock;
 pub mod plan;
 pub mod process;
 pub mod progress;
 pub mod record;
 pub mod restart;
 pub mod select;
+pub mod sizes;
 pub mod stats;
 pub mod supervisor;
 pub mod watchdog;

@@ -18,6 +18,7 @@ use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
 
 use crate::error::{bad, BadRequest};
+use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use crate::select::objects_or_default;
 use fulcrum_shared::load_world;
@@ -84,7 +85,7 @@ pub struct TrainRequest {
 }
 
 /// A planned run: ready to start.
-#[derive(Debug, Clone)]
+#[derive(Debug)]
 pub struct Planned {
     /// The checked configuration (already written to `config.toml`).
     pub cfg: RunConfig,
@@ -94,6 +95,9 @@ pub struct Planned {
     pub paths: RunPaths,
     /// Whether it continues an earlier run.
     pub resumed: bool,
+    /// The run directory's lock, held by this invocation and the children it starts
+    /// (keep it until the run ends).
+    pub lock: DirLock,
 }
 
 /// The resolved configuration, its world, the run's paths, and whether it is a resume.
@@ -107,6 +111,8 @@ pub fn resolve(a: &TrainRequest) -> Result<Planned> {
         .clone()
         .unwrap_or_else(|| PathBuf::from("runs").join(&cfg.run_id));
     let paths = RunPaths { dir: dir.clone() };
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let lock = lock_for_run(&dir)?;
     if paths.config().exists() {
         return bad(format!(
             "{} already holds a run; continue it with `fulcrum train --resume {}` or choose another run directory",
@@ -122,6 +128,7 @@ pub fn resolve(a: &TrainRequest) -> Result<Planned> {
         world: w,
         paths,
         resumed: false,
+        lock,
     })
 }
 
@@ -138,6 +145,8 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
                 dir.display()
             ));
         }
+        let lock = lock_for_run(dir)?;
+        clean_stale_temps(&paths)?;
         let mut cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
         if let Some(w) = &a.world {
             if w != &cfg.world && w != &cfg.world_name {
@@ -192,13 +201,16 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
             if let Err(e) = cfg.fits_checkpoint(&extra) {
                 return bad(format!("{}: {e}", dir.display()));
             }
+            rows_reach_checkpoint(&paths, &extra)?;
         }
+        crate::sizes::check_memory(&cfg, &w)?;
         write_config(&paths, &cfg)?;
         Ok(Planned {
             cfg,
             world: w,
             paths,
             resumed: true,
+            lock,
         })
     }
 }
@@ -285,6 +297,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
     if a.steps.is_some() {
         whole_updates(&cfg)?;
     }
+    crate::sizes::check_memory(&cfg, &w)?;
     if cfg.empowerment {
         // Tool and objects are resolved (and refused) here, before any process starts.
         objects_or_default(
@@ -315,6 +328,53 @@ fn whole_updates(cfg: &RunConfig) -> Result<()> {
             "{s} env steps is not a whole number of updates of {b} steps (actors x worlds per actor x steps per chunk): use {}{}",
             if below > 0 { format!("{below} or ") } else { String::new() },
             below + b
+        ));
+    }
+    Ok(())
+}
+
+/// Temporary files that writers killed mid-write left in the run directory (its
+/// checkpoints and plots too): none of them can be a live writer's, since the run
+/// directory is locked.
+fn clean_stale_temps(paths: &RunPaths) -> Result<()> {
+    let ckpt_dir = paths.checkpoint().parent().map(Path::to_path_buf);
+    for d in [Some(paths.dir.clone()), ckpt_dir, Some(paths.plots())]
+        .into_iter()
+        .flatten()
+        .filter(|d| d.is_dir())
+    {
+        fulcrum_shared::fsio::remove_stale_temps(&d)
+            .with_context(|| format!("cannot clean temporary files in {}", d.display()))?;
+    }
+    Ok(())
+}
+
+/// `metrics.csv` must hold every update up to the checkpoint's: the learner syncs the
+/// rows before each checkpoint, so rows missing below it mean the file was lost or cut
+/// by hand, and a resume would leave a hole in the run's curve. Refused (rows after
+/// the checkpoint are fine: the learner drops and redoes them).
+fn rows_reach_checkpoint(
+    paths: &RunPaths,
+    extra: &fulcrum_shared::checkpoint::Extra,
+) -> Result<()> {
+    let upto = extra.counters.get("update").copied().unwrap_or(0);
+    if upto == 0 {
+        return Ok(());
+    }
+    let path = paths.metrics();
+    let rows = fulcrum_learner::metrics::read_metrics(&path).unwrap_or_default();
+    let mut have = 0;
+    for r in rows.iter().filter(|r| r.update <= upto) {
+        if r.update != have + 1 {
+            break;
+        }
+        have = r.update;
+    }
+    if have < upto {
+        return bad(format!(
+            "{} holds the rows of updates 1 to {have} without a gap, but the checkpoint is at update {upto}: rows {} to {upto} are missing (restore the file, or start a new run)",
+            path.display(),
+            have + 1
         ));
     }
     Ok(())

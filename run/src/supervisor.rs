@@ -429,6 +429,11 @@ impl Supervisor {
             Some(0) => Ok(Outcome::Finished),
             Some(EXIT_PAUSED) => Ok(Outcome::Paused),
             Some(EXIT_INTERRUPTED) if stopping => Ok(Outcome::Interrupted),
+            _ if !self.paths.checkpoint().exists() => Err(anyhow::anyhow!(
+                "the learner failed ({}) before its first checkpoint; `fulcrum train --resume {}` starts the run over",
+                describe_status(s),
+                self.paths.dir.display()
+            )),
             _ => Err(anyhow::anyhow!(
                 "the learner failed ({}); the last checkpoint is in {}; continue with `fulcrum train --resume {}`",
                 describe_status(s),

@@ -34,7 +34,7 @@
 //!
 //! # Guarantees
 //!
-//! * [`write`] writes `<path>.tmp` in the same directory, fsyncs it, renames it over
+//! * [`write`] writes a temporary file of its own in the same directory, fsyncs it, renames it over
 //!   `path` and fsyncs the directory: `path` always holds either the previous checkpoint
 //!   or the new one, never a partial file. It refuses to write non-finite weights (that
 //!   would replace a good checkpoint with one that [`read`] refuses).
@@ -379,27 +379,17 @@ pub fn write(
     write_atomic(path, &bytes)
 }
 
-/// `<path>.tmp`, fsync, rename over `path`, fsync the directory.
+/// A temporary file of its own (`.<name>.tmp-<pid>-<n>`, [`crate::fsio::temp_path`]),
+/// fsync, rename over `path`, fsync the directory.
 fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), CheckpointError> {
     let fail = |what: String, source: io::Error| CheckpointError::Write {
         path: path.to_path_buf(),
         what,
         source,
     };
-    let Some(name) = path.file_name() else {
-        return Err(fail(
-            "the path does not name a file".into(),
-            io::Error::from(io::ErrorKind::InvalidInput),
-        ));
-    };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let mut tmp_name = name.to_os_string();
-    tmp_name.push(".tmp");
-    crate::fsio::replace_via(path, &dir.join(tmp_name), bytes, false)
-        .map_err(|(what, source)| fail(what, source))
+    let tmp = crate::fsio::temp_path(path)
+        .map_err(|e| fail("the path does not name a file".into(), e))?;
+    crate::fsio::replace_via(path, &tmp, bytes, true).map_err(|(what, source)| fail(what, source))
 }
 
 /// A validated tensor of the file, as f32 values.

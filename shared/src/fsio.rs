@@ -7,12 +7,19 @@
 //! device node with a regular file, which on a shared machine breaks every later
 //! process that reads `/dev/null` (cargo's own `rustc -` probe among them).
 //!
+//! Every temporary file is named `.<name>.tmp-<pid>-<n>` ([`temp_path`]): two writers
+//! never share one (a shared name let two invocations truncate each other's checkpoint
+//! into a mixed file), and one left by a writer that died is recognised by its dead pid
+//! and removed ([`remove_stale_temps`], called when a run directory is locked).
+//!
 //! [`write_atomic`]: crate::fsio::write_atomic
+//! [`temp_path`]: crate::fsio::temp_path
+//! [`remove_stale_temps`]: crate::fsio::remove_stale_temps
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
 use std::io::{self, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Write `bytes` to `path` atomically: a temp file in the same directory, fsync, then
@@ -20,7 +27,6 @@ use std::sync::atomic::{AtomicU64, Ordering};
 /// was. A `path` that exists and is not a regular file (a device, a FIFO, a socket, or
 /// a link to one) is opened and written in place; a directory is an error.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
     if let Ok(meta) = fs::metadata(path) {
         if meta.is_dir() {
             return Err(io::Error::new(
@@ -32,6 +38,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
             return OpenOptions::new().write(true).open(path)?.write_all(bytes);
         }
     }
+    let tmp = temp_path(path)?;
+    replace_via(path, &tmp, bytes, true).map_err(|(_, e)| e)
+}
+
+/// A temporary path beside `path` that no other writer uses:
+/// `.<name>.tmp-<pid>-<n>`, `n` counting this process's temporary files.
+pub fn temp_path(path: &Path) -> io::Result<PathBuf> {
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
     let name = path.file_name().ok_or_else(|| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -49,8 +63,39 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
-    let tmp = dir.join(tmp_name);
-    replace_via(path, &tmp, bytes, true).map_err(|(_, e)| e)
+    Ok(dir.join(tmp_name))
+}
+
+/// The writer's pid of a name made by [`temp_path`]; None for other names.
+fn temp_writer(name: &str) -> Option<u32> {
+    let rest = name.strip_prefix('.')?;
+    let (_, tail) = rest.rsplit_once(".tmp-")?;
+    let (pid, n) = tail.split_once('-')?;
+    n.parse::<u64>().ok()?;
+    pid.parse().ok()
+}
+
+/// Remove the temporary files in `dir` (not below it) whose writer has exited: what a
+/// writer killed between creating and renaming its temporary file left. Returns how
+/// many went. Files of live writers, and every other file, stay.
+pub fn remove_stale_temps(dir: &Path) -> io::Result<usize> {
+    let mut removed = 0;
+    for e in fs::read_dir(dir)? {
+        let e = e?;
+        let name = e.file_name();
+        let Some(pid) = name.to_str().and_then(temp_writer) else {
+            continue;
+        };
+        // SAFETY: kill with signal 0 only checks whether the process exists.
+        let alive = pid == std::process::id()
+            || unsafe { libc::kill(pid as libc::pid_t, 0) } == 0
+            || io::Error::last_os_error().raw_os_error() != Some(libc::ESRCH);
+        if !alive && e.file_type()?.is_file() {
+            fs::remove_file(e.path())?;
+            removed += 1;
+        }
+    }
+    Ok(removed)
 }
 
 /// The one way fulcrum replaces a file: write `bytes` to `tmp` (a path in the same
@@ -186,5 +231,40 @@ mod tests {
         assert!(kind.is_fifo(), "the fifo was replaced by {kind:?}");
         assert_eq!(reader.join().expect("reader"), b"{\"steps\": 3}\n");
         assert_eq!(entries(&dir.0), ["pipe"]);
+    }
+
+    /// Temporary names are unique per write, and a stale one (its writer gone) is
+    /// cleaned while a live writer's and every other file stay.
+    #[test]
+    fn temp_names_are_unique_and_only_dead_writers_temps_are_cleaned() {
+        let dir = TempDir::new("stale");
+        let path = dir.0.join("latest.safetensors");
+        let (a, b) = (temp_path(&path).unwrap(), temp_path(&path).unwrap());
+        assert_ne!(a, b);
+        let me = std::process::id();
+        assert!(a
+            .file_name()
+            .unwrap()
+            .to_str()
+            .unwrap()
+            .starts_with(&format!(".latest.safetensors.tmp-{me}-")));
+        // A writer that has exited (reaped: its pid names no process now).
+        let mut child = std::process::Command::new("true").spawn().expect("true");
+        let dead = child.id();
+        child.wait().expect("wait");
+        let stale = dir.0.join(format!(".latest.safetensors.tmp-{dead}-3"));
+        let live = dir.0.join(format!(".latest.safetensors.tmp-{me}-9"));
+        for p in [&stale, &live, &path, &dir.0.join(".notes.tmp-x-1")] {
+            fs::write(p, b"x").unwrap();
+        }
+        assert_eq!(remove_stale_temps(&dir.0).unwrap(), 1);
+        assert_eq!(
+            entries(&dir.0),
+            [
+                format!(".latest.safetensors.tmp-{me}-9"),
+                ".notes.tmp-x-1".to_string(),
+                "latest.safetensors".to_string()
+            ]
+        );
     }
 }

@@ -65,6 +65,21 @@ pub fn host_of(actor: u32) -> u32 {
 
 /// Chunks the learner's queue holds per actor before actors block.
 pub const CHUNK_QUEUE: usize = 4;
+/// Subscribers of the trajectory service (the learner, and one spare).
+pub const CHUNK_SUBSCRIBERS: usize = 2;
+/// Subscribers of the weights service: every local actor, the bridge, and spares for
+/// actors restarted while their predecessor's port is not yet cleaned up.
+pub const WEIGHTS_SUBSCRIBERS: usize = MAX_ACTORS + 4;
+/// Weights a subscriber keeps queued, and borrows at a time: one each, since an actor
+/// only wants the newest weights (safe overflow replaces older ones) and reads one
+/// sample at a time. iceoryx2 keeps `subscribers x (queued + borrowed) + history +
+/// loaned` samples of the weights in shared memory (`fulcrum_run::sizes`), so each
+/// one more here costs the weights `2 x WEIGHTS_SUBSCRIBERS` times over.
+pub const WEIGHTS_BUFFER: usize = 1;
+/// Weights samples the learner's publisher loans at a time.
+pub const WEIGHTS_LOANED: usize = 1;
+/// Chunks an actor's publisher loans at a time.
+pub const CHUNKS_LOANED: usize = 2;
 /// Bytes of one world's episode record in `env_state`.
 pub const ENV_BYTES: usize = 56;
 
@@ -553,7 +568,7 @@ pub fn trajectory_service(
         .publish_subscribe::<[u8]>()
         .user_header::<ChunkHeader>()
         .max_publishers(MAX_ACTORS + 4)
-        .max_subscribers(2)
+        .max_subscribers(CHUNK_SUBSCRIBERS)
         .max_nodes(MAX_ACTORS + 8)
         .subscriber_max_buffer_size(CHUNK_QUEUE)
         .subscriber_max_borrowed_samples(CHUNK_QUEUE)
@@ -572,10 +587,10 @@ pub fn policy_service(
         .publish_subscribe::<[f32]>()
         .user_header::<WeightsHeader>()
         .max_publishers(2)
-        .max_subscribers(MAX_ACTORS + 4)
+        .max_subscribers(WEIGHTS_SUBSCRIBERS)
         .max_nodes(MAX_ACTORS + 8)
-        .subscriber_max_buffer_size(2)
-        .subscriber_max_borrowed_samples(2)
+        .subscriber_max_buffer_size(WEIGHTS_BUFFER)
+        .subscriber_max_borrowed_samples(WEIGHTS_BUFFER)
         .history_size(1)
         .enable_safe_overflow(true)
         .open_or_create()

@@ -27,6 +27,7 @@ pub fn run(a: &TrainArgs) -> Result<()> {
         world: w,
         paths,
         resumed,
+        lock: _lock,
     } = resolve(&a.request()?)?;
     fulcrum_run::process::install_signal_handlers();
     let ns = format!(

@@ -180,6 +180,9 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
         arms: arms.clone(),
     };
     let spec_path = dir.join("experiment.toml");
+    // The directory belongs to this invocation (and the runs it starts) from here on.
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let _lock = crate::lock::lock_for_run(&dir)?;
     if spec_path.exists() {
         let old: Spec = std::fs::read_to_string(&spec_path)
             .ok()
@@ -232,6 +235,17 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
         .iter()
         .filter(|j| state(&j.dir, spec.steps) != State::Done)
         .collect();
+    // A run another invocation is training (`train --resume` on it by hand) is neither
+    // started again nor cleared.
+    for j in &todo {
+        if let Some(pid) = crate::lock::DirLock::holder(&j.dir) {
+            return bad(crate::lock::LockError::Held {
+                dir: j.dir.clone(),
+                pid,
+            }
+            .to_string());
+        }
+    }
     eprintln!(
         "fulcrum experiment: {} in {}: {} arms x {} seeds, {} env steps each; {} to run, {} at a time on {} core{} each",
         world_name,

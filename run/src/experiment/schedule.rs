@@ -12,6 +12,7 @@ use fulcrum_learner::paths::RunPaths;
 
 use super::{state, train_args, Job, Spec, State};
 use crate::error::Interrupted;
+use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping};
 use crate::progress::Progress;
 
@@ -56,9 +57,17 @@ pub(super) fn schedule(
                 .collect();
             let st = state(&job.dir, spec.steps);
             if st == State::Fresh && job.dir.exists() {
-                // A run that never wrote a checkpoint has nothing to continue from.
-                std::fs::remove_dir_all(&job.dir)
-                    .with_context(|| format!("cannot clear {}", job.dir.display()))?;
+                // A run that never wrote a checkpoint has nothing to continue from;
+                // cleared under its lock, never while another invocation holds it.
+                match DirLock::acquire(&job.dir) {
+                    Ok(_held) => std::fs::remove_dir_all(&job.dir)
+                        .with_context(|| format!("cannot clear {}", job.dir.display()))?,
+                    Err(e) => {
+                        progress.note(&format!("{} not started: {e}", name(job)));
+                        failed.push(name(job));
+                        continue;
+                    }
+                }
             }
             if let Some(parent) = job.dir.parent() {
                 std::fs::create_dir_all(parent)
