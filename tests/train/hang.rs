@@ -511,3 +511,28 @@ fn a_stopped_learner_is_named_by_the_watchdog() {
     assert!(!err.contains("waiting for actor"), "{err}");
     assert_nothing_left(&namespace_of(&err));
 }
+
+#[test]
+fn bad_supervision_settings_are_refused_before_anything_starts() {
+    for (args, flag) in [
+        (&["--hang-timeout", "0"][..], "--hang-timeout 0 must be"),
+        (&["--hang-timeout", "inf"][..], "--hang-timeout inf must be"),
+        (&["--restart-window", "0"][..], "--restart-window 0 must be"),
+        (
+            &["--restart-window", "NaN"][..],
+            "--restart-window NaN must be",
+        ),
+    ] {
+        let dir = TempDir::fresh("bad-supervision");
+        let d = dir.to_str().unwrap();
+        let out = crate::util::run(&[&["train", "room", "--out", d][..], args].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(flag) && err.contains("a positive number of seconds"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(!dir.exists(), "nothing written for {args:?}");
+    }
+}
