@@ -456,14 +456,22 @@ fn a_refused_chunk_does_not_leave_actor_and_learner_waiting_on_each_other() {
     );
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
     assert_eq!(rows.len(), 40, "every update made");
-    assert_eq!(rows.last().unwrap().dropped_chunks, 1);
+    // The refused chunk (and, on a busy machine, a chunk of actor 1 that the learner's
+    // updates without it made stale before it came).
+    assert!(rows.last().unwrap().dropped_chunks >= 1);
     assert_eq!(rows.last().unwrap().lost_chunks, 0, "refused, not lost");
-    // One update without actor 1 (the one its refused chunk was for), whole chunks in
-    // all the others: it was taken back with its next chunk.
+    // Update 6 (the one its refused chunk was for) is made without actor 1, and so
+    // are the next ones until its next chunk comes (on a busy machine the learner may
+    // make a few with actor 0 alone meanwhile); from then on both actors, whole chunks.
     let steps = steps_per_update(&dir);
+    assert!(steps[..5].iter().all(|&s| s == 256), "{steps:?}");
     assert_eq!(steps[5], 128, "{steps:?}");
-    assert_eq!(steps.iter().filter(|&&s| s == 128).count(), 1, "{steps:?}");
-    assert!(steps.iter().all(|&s| s == 128 || s == 256), "{steps:?}");
+    let back = 5 + steps[5..]
+        .iter()
+        .position(|&s| s == 256)
+        .expect("actor 1 back");
+    assert!(steps[5..back].iter().all(|&s| s == 128), "{steps:?}");
+    assert!(steps[back..].iter().all(|&s| s == 256), "{steps:?}");
     // Nobody waited for the refused chunk: no update took anywhere near the local
     // deadline (10 s).
     let slowest = rows
@@ -510,4 +518,29 @@ fn a_stopped_learner_is_named_by_the_watchdog() {
     );
     assert!(!err.contains("waiting for actor"), "{err}");
     assert_nothing_left(&namespace_of(&err));
+}
+
+#[test]
+fn bad_supervision_settings_are_refused_before_anything_starts() {
+    for (args, flag) in [
+        (&["--hang-timeout", "0"][..], "--hang-timeout 0 must be"),
+        (&["--hang-timeout", "inf"][..], "--hang-timeout inf must be"),
+        (&["--restart-window", "0"][..], "--restart-window 0 must be"),
+        (
+            &["--restart-window", "NaN"][..],
+            "--restart-window NaN must be",
+        ),
+    ] {
+        let dir = TempDir::fresh("bad-supervision");
+        let d = dir.to_str().unwrap();
+        let out = crate::util::run(&[&["train", "room", "--out", d][..], args].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(flag) && err.contains("a positive number of seconds"),
+            "{args:?}: {err}"
+        );
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(!dir.exists(), "nothing written for {args:?}");
+    }
 }
