@@ -15,7 +15,7 @@
 //! 3. per chunk, reward `r_t = R_t + beta * E(s_{t+1})` and GAE (truncation bootstraps
 //!    from the chunk's `trunc_value`, termination does not);
 //! 4. PPO on the concatenated batch with `lr = lr0 * (1 - u / U)`;
-//! 5. check that the weights are finite (else stop: [`LearnerError::Diverged`]),
+//! 5. check that the weights are finite (else stop: [`crate::error::LearnerError::Diverged`]),
 //!    publish them as version v + 1, append a metrics row, checkpoint every N
 //!    updates and at the end (weights, Adam moments and step, the minibatch RNG,
 //!    counters, and each actor's episode records, so that a resumed run continues

@@ -4,7 +4,7 @@
 //!
 //! **Finite weights.** Every flat weights buffer is checked (one pass: any NaN or
 //! infinity) before it is published; non-finite weights end the learner with
-//! [`LearnerError::Diverged`] naming the update, so no actor ever receives them and no
+//! [`crate::error::LearnerError::Diverged`] naming the update, so no actor ever receives them and no
 //! checkpoint holds them (the last checkpoint keeps the weights from before).
 //!
 //! **Local deadline.** In synchronous mode an update waits for one chunk per actor made
