@@ -1,11 +1,11 @@
 //! `metrics.csv`: one row per update, written by the learner and read back by
 //! `fulcrum train` and `fulcrum experiment`.
 //!
-//! Durability: a row is appended with one `write` ([`append_row`]), so a failure
+//! Durability: a row is appended with one `write` (`append_row`), so a failure
 //! (a full disk) leaves at most one torn row, which a resume drops; the rows are synced
-//! to disk ([`sync_rows`]) before each checkpoint is written, so a checkpoint never
+//! to disk (`sync_rows`) before each checkpoint is written, so a checkpoint never
 //! refers to an update whose row a crash can lose. A resume keeps the rows up to the
-//! checkpoint ([`trim_metrics`]); a start without a checkpoint keeps none.
+//! checkpoint (`trim_metrics`); a start without a checkpoint keeps none.
 
 use std::path::Path;
 
