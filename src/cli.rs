@@ -500,9 +500,13 @@ pub struct ActorHostArgs {
     /// Seconds to wait for the learner, at the start and after a lost link.
     #[arg(long, value_name = "SECS", default_value_t = 600.0)]
     pub give_up: f64,
-    /// Restarts of crashed actors allowed.
-    #[arg(long, default_value_t = 20)]
+    /// Restarts each of this host's actors may have within --restart-window seconds;
+    /// one more stop ends the host. Restarts wait a back-off of 100 ms doubling to 10 s.
+    #[arg(long, default_value_t = fulcrum_run::restart::DEFAULT_MAX_RESTARTS)]
     pub max_restarts: u32,
+    /// The window of --max-restarts, seconds.
+    #[arg(long, value_name = "SECS", default_value_t = fulcrum_run::restart::DEFAULT_WINDOW_S)]
+    pub restart_window: f64,
     /// A file holding the run's secret (a copy of the run directory's `secret`);
     /// without it the secret is taken from the environment variable FULCRUM_SECRET.
     #[arg(long, value_name = "FILE")]

@@ -9,14 +9,15 @@
 //!                                       the host's own shared-memory namespace
 //! ```
 //!
-//! Crashed actors are restarted (bounded); a lost link is the bridge's business (zenoh
+//! Crashed actors are restarted after a back-off, each within its own budget of
+//! restarts in a window (as the supervisor's children: `fulcrum_run::restart`); a lost link is the bridge's business (zenoh
 //! reconnects, the actors wait for weights meanwhile). The host stops when the run is
 //! over (the learner's bridge says so), on SIGINT/SIGTERM, or when the bridge fails.
 
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
 use std::sync::atomic::Ordering;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 
@@ -26,6 +27,7 @@ use fulcrum_run::bad;
 use fulcrum_run::process::{
     cores, hostname, install_signal_handlers, spawn_until, stop_children, Ready, STOP,
 };
+use fulcrum_run::restart::{Budget, RestartPolicy};
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {
@@ -35,6 +37,12 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         return bad(format!(
             "--actors {k} must be 1 to {}",
             fulcrum_shared::traj::MAX_ACTORS
+        ));
+    }
+    if !(a.restart_window.is_finite() && a.restart_window > 0.0 && a.restart_window < 1e9) {
+        return bad(format!(
+            "--restart-window {} must be a positive number of seconds",
+            a.restart_window
         ));
     }
     // Checked here so that a host without the secret stops before it starts anything;
@@ -122,7 +130,15 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     for j in 0..k {
         actors.push((start(j, 0)?, 0));
     }
-    let mut restarts = 0u32;
+    // Each actor has its own budget of restarts in a window, and waits a back-off
+    // before each restart (as the supervisor's children do).
+    let policy = RestartPolicy {
+        max: a.max_restarts,
+        window: Duration::from_secs_f64(a.restart_window),
+    };
+    let mut budgets = vec![Budget::default(); k];
+    // An actor that stopped and waits for its back-off: when to restart it.
+    let mut due: Vec<Option<Instant>> = vec![None; k];
     let mut over = false;
     let result = loop {
         while let Ok(line) = rx.try_recv() {
@@ -145,19 +161,39 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             };
         }
         let mut failure = None;
+        let now = Instant::now();
         for (j, slot) in actors.iter_mut().enumerate() {
-            if let Some(s) = slot.0.try_wait()? {
-                restarts += 1;
-                if restarts > a.max_restarts {
-                    failure = Some(anyhow::anyhow!(
-                        "actor {j} stopped ({s}) and the host used up its {} restarts",
-                        a.max_restarts
-                    ));
-                    break;
+            if let Some(at) = due[j] {
+                if now >= at {
+                    due[j] = None;
+                    let inc = slot.1 + 1;
+                    *slot = (start(j, inc)?, inc);
                 }
-                eprintln!("fulcrum actor-host: actor {j} stopped ({s}); restarting it");
-                let inc = slot.1 + 1;
-                *slot = (start(j, inc)?, inc);
+                continue;
+            }
+            if let Some(s) = slot.0.try_wait()? {
+                match budgets[j].stopped(&policy, now) {
+                    Ok(r) => {
+                        eprintln!(
+                            "fulcrum actor-host: actor {j} stopped ({s}); restarting it after {:.1} s (restart {} of {} allowed in {} s)",
+                            r.delay.as_secs_f64(),
+                            r.n,
+                            policy.max,
+                            policy.window.as_secs_f64()
+                        );
+                        due[j] = Some(now + r.delay);
+                    }
+                    Err(o) => {
+                        failure = Some(anyhow::anyhow!(
+                            "actor {j} stopped ({s}), its stop number {} within {} s: over its budget of {} restarts in {} s",
+                            o.n,
+                            policy.window.as_secs_f64(),
+                            policy.max,
+                            policy.window.as_secs_f64()
+                        ));
+                        break;
+                    }
+                }
             }
         }
         if let Some(e) = failure {

@@ -19,6 +19,7 @@ use fulcrum_learner::metrics::read_metrics;
 
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
+mod restarts;
 mod rogue;
 
 /// The run's secret, as its bridge wrote it into the run directory.
