@@ -77,7 +77,8 @@ fn start(dir: &str, fresh: bool) -> Child {
             .concat(),
         )
     } else {
-        train(&["--resume", dir])
+        // Supervision settings are the invocation's, not the run's: again on resume.
+        train(&["--resume", dir, "--max-restarts", "100"])
     }
 }
 
