@@ -6,8 +6,8 @@
 //!
 //! - a chunk must come under the key of a host that joined (`chunks/<name>`), carry an
 //!   actor id of that host's range (`index * HOST_STRIDE + j`, `j < MAX_ACTORS`), the
-//!   run's tag and world hash, and pass [`ChunkLayout::validate`] (shape, length,
-//!   contents). Its length is checked before any shared memory is loaned for it, so an
+//!   run's tag and world hash, and pass [`check_chunk`], the learner's own check
+//!   (shape, length, and every byte a state of the world). Its length is checked before any shared memory is loaned for it, so an
 //!   oversized body is a refusal, never a failed loan;
 //! - a lookup must be of a kind the run's actors send: DESCRIBE (asked once by the
 //!   host's bridge) and LOOKUP, or VISIT for the count bonus. QUERY (a fresh dynamic
@@ -32,6 +32,7 @@
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
+use fulcrum_shared::chunk_check::check_chunk;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::msg::kind;
@@ -80,7 +81,8 @@ pub type Hosts = Arc<Mutex<BTreeMap<String, (u32, String)>>>;
 #[derive(Debug, Clone)]
 pub struct Guard {
     layout: ChunkLayout,
-    actions: usize,
+    world: Arc<World>,
+    action_mask: bool,
     run: u64,
     world_hash: u64,
     lookup_kind: u32,
@@ -99,7 +101,8 @@ impl Guard {
                 cells: shape.cells,
                 flags: shape.flags,
             },
-            actions: world.num_actions(),
+            world: Arc::new(world.clone()),
+            action_mask: cfg.action_mask,
             run: traj::run_tag(ns),
             world_hash: world.content_hash(),
             lookup_kind: if cfg.form() == Intrinsic::Count {
@@ -117,9 +120,9 @@ impl Guard {
     }
 
     /// Check a chunk that arrived under `chunks/<name>`; the header when it may go on.
-    pub fn chunk(&self, name: &str, bytes: &[u8]) -> Result<ChunkHeader, &'static str> {
+    pub fn chunk(&self, name: &str, bytes: &[u8]) -> Result<ChunkHeader, String> {
         if bytes.len() > self.chunk_wire_bytes() {
-            return Err("larger than a chunk of this run");
+            return Err("larger than a chunk of this run".into());
         }
         let h = ChunkHeader::from_wire(bytes).ok_or("its header does not parse")?;
         let index = {
@@ -128,13 +131,14 @@ impl Guard {
         };
         let index = index.ok_or("from a host that has not joined")?;
         if traj::host_of(h.actor) != index || (h.actor % HOST_STRIDE) as usize >= MAX_ACTORS {
-            return Err("for an actor id not given to this host");
+            return Err("for an actor id not given to this host".into());
         }
         if h.run != self.run || h.world_hash != self.world_hash {
-            return Err("of another run or world");
+            return Err("of another run or world".into());
         }
-        self.layout
-            .validate(&h, self.actions, &bytes[ChunkHeader::WIRE_BYTES..])?;
+        let body = &bytes[ChunkHeader::WIRE_BYTES..];
+        check_chunk(&self.world, &self.layout, self.action_mask, &h, body)
+            .map_err(|e| e.to_string())?;
         Ok(h)
     }
 

@@ -205,7 +205,7 @@ fn chunks_in(
                 Ok(h) => h,
                 Err(why) => {
                     let what = format!("a chunk of {} bytes from '{name}'", bytes.len());
-                    stats.refuse(&stats.refused_chunks, &what, why);
+                    stats.refuse(&stats.refused_chunks, &what, &why);
                     continue;
                 }
             };
