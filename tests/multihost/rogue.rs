@@ -7,6 +7,7 @@ use std::os::unix::fs::PermissionsExt;
 use std::path::Path;
 use std::time::Duration;
 
+use fulcrum_bridge::zenoh::qos::CongestionControl;
 use fulcrum_bridge::zenoh::{self, Wait};
 use fulcrum_bridge::Hello;
 use fulcrum_shared::config::RunConfig;
@@ -235,7 +236,15 @@ fn a_rogue_peer_is_refused_at_each_step_and_the_run_goes_on() {
     assert!(!hello.config.contains('/'), "{text}");
     assert_eq!(hello.host, 2);
     let run = hello.run.clone();
-    let put = |key: &str, bytes: Vec<u8>| r.put(key, bytes).wait().unwrap();
+    // Blocking congestion control, as real hosts send: zenoh's default for a put drops
+    // it when the queue is full, which the 8 MiB chunk below can make happen on a slow
+    // machine, and a dropped attack would never reach the bridge to be refused.
+    let put = |key: &str, bytes: Vec<u8>| {
+        r.put(key, bytes)
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .unwrap()
+    };
 
     // Chunks: for the honest host's actor, oversized, bad contents, from a host that
     // never joined: 4 refused.
@@ -281,7 +290,11 @@ fn a_rogue_peer_is_refused_at_each_step_and_the_run_goes_on() {
         format!("fulcrum/{run}/*"),
         "fulcrum/**".into(),
     ] {
-        client.put(key, "done").wait().unwrap();
+        client
+            .put(key, "done")
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .unwrap();
     }
     // Nor can it listen in on what other hosts send.
     let spy = client.declare_subscriber("fulcrum/**").wait().unwrap();
