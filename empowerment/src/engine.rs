@@ -363,6 +363,44 @@ impl<'w> Engine<'w> {
         Ok(out)
     }
 
+    /// The value of every state for a LOOKUP table, by state id, in bits (`f32`):
+    /// `E^{h(s)}_{tool,set}(s)` with `h(s) = horizon_equipped` where the tool is held and
+    /// `horizon_unequipped` elsewhere; or, with `horizon_sum`, the potential
+    /// `Phi(s) = sum over h = 1..H of E^h(s)`, `H` the larger of the two, in every state.
+    /// The empowerment service answers from this table, and so does the Python package's
+    /// reward wrapper.
+    pub fn lookup_values(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        horizon_unequipped: u32,
+        horizon_equipped: u32,
+        horizon_sum: bool,
+    ) -> Result<Vec<f32>, EngineError> {
+        if horizon_sum {
+            // Every horizon 1..=H in one propagation; Phi is their sum (f64, then f32).
+            let h = horizon_unequipped.max(horizon_equipped);
+            let hs: Vec<u32> = (1..=h).collect();
+            let counts = self.counts(tool, set, &hs, Method::Dp)?;
+            return Ok((0..self.space.len())
+                .map(|i| counts.iter().map(|c| (c[i] as f64).log2()).sum::<f64>() as f32)
+                .collect());
+        }
+        let counts = self.counts(
+            tool,
+            set,
+            &[horizon_unequipped, horizon_equipped],
+            Method::Dp,
+        )?;
+        Ok(self
+            .space
+            .states()
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (counts[tool.held(s) as usize][i] as f64).log2() as f32)
+            .collect())
+    }
+
     /// The id of a state, or why it is not in the state space.
     pub fn state_id(&self, s: &State) -> Result<u32, EngineError> {
         self.space.id(s).ok_or_else(|| {

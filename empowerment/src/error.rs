@@ -54,4 +54,8 @@ pub enum EngineError {
     /// A state that is not in the world's state space.
     #[error("{0}")]
     NotInSpace(String),
+    /// A request that names what the world does not have (an unknown tool, object or
+    /// inventory) or is not written as one: the sentence says which and what would be.
+    #[error("{0}")]
+    Request(String),
 }

@@ -27,6 +27,7 @@
 //! - [`propagate`]: set propagation, the fast exact method;
 //! - [`enumerate`]: the reference method, every action sequence;
 //! - [`limits`]: memory limits, checked before a computation starts;
+//! - [`request`]: reading what a request names (object sets, tools, inventories);
 //! - [`error`]: the engine's errors;
 //! - [`service`]: the empowerment service and its client (iceoryx2 request-response).
 
@@ -35,6 +36,7 @@ pub mod enumerate;
 pub mod error;
 pub mod limits;
 pub mod propagate;
+pub mod request;
 pub mod service;
 pub mod space;
 

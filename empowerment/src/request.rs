@@ -1,16 +1,23 @@
-//! Reading what a request names: an object set, a tool (or
-//! the tool selection of the matrix), an inventory. Each mistake is a
-//! [`BadRequest`](crate::BadRequest) naming what was not understood and what would be.
+//! Reading what a request names: an object set, a tool (or the tool selection of the
+//! matrix), an inventory. Each mistake is an [`EngineError::Request`] naming what was
+//! not understood and what would be. The command line and the Python package read
+//! their arguments here, so both say the same sentence.
 
-use anyhow::Result;
-use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
 use fulcrum_shared::{ObjectSet, ToolChoice, World};
 
-use crate::error::bad;
+use crate::engine::{Engine, Method, ToolSel};
+use crate::error::EngineError;
+use crate::limits::Limits;
+
+type Result<T> = std::result::Result<T, EngineError>;
+
+fn bad<T>(msg: impl Into<String>) -> Result<T> {
+    Err(EngineError::Request(msg.into()))
+}
 
 /// Enumerate a world's state space with the default limits.
 pub fn engine(world: &World) -> Result<Engine<'_>> {
-    Ok(Engine::new(world, Limits::default())?)
+    Engine::new(world, Limits::default())
 }
 
 /// Parse an object set: `agent`, or names joined by `,` or `+`.
@@ -107,7 +114,7 @@ pub fn tool_sel(
                     return bad(format!(
                         "tool selection: no tool of world '{}' has empowerment over {}; name one",
                         world.name,
-                        fulcrum_empowerment::set_name(world, set)
+                        crate::engine::set_name(world, set)
                     ))
                 }
             }
@@ -131,4 +138,39 @@ pub fn holding_mask(world: &World, text: &str) -> Result<u16> {
         }
     }
     Ok(m)
+}
+
+/// The matrix's columns: each name of `objects` (comma separated) as a single-object
+/// column (default: every object of the world), then each joint set of `joint`; refused
+/// when there is no column or the world has no tool for a row.
+pub fn matrix_columns(
+    world: &World,
+    objects: Option<&str>,
+    joint: &[String],
+) -> Result<Vec<ObjectSet>> {
+    let mut columns: Vec<ObjectSet> = match objects {
+        Some(list) => list
+            .split(',')
+            .map(|n| object_set(world, n.trim()))
+            .collect::<Result<_>>()?,
+        None => (0..world.objects.len())
+            .map(|i| ObjectSet::Objects(vec![i]))
+            .collect(),
+    };
+    for j in joint {
+        columns.push(object_set(world, j)?);
+    }
+    if columns.is_empty() {
+        return bad(format!(
+            "world '{}' has no objects: nothing to put in the matrix's columns",
+            world.name
+        ));
+    }
+    if world.tools.is_empty() {
+        return bad(format!(
+            "world '{}' has no tools: the matrix has no rows",
+            world.name
+        ));
+    }
+    Ok(columns)
 }

@@ -10,7 +10,6 @@
 //! | module | what it owns |
 //! |---|---|
 //! | [`plan`] | a request -> a checked `RunConfig`, its world and run directory |
-//! | [`select`] | reading a world, object set, tool or inventory named in a request |
 //! | [`lock`] | one invocation per run or experiment directory (`flock` on `.lock`) |
 //! | [`sizes`] | the shared memory a run needs, checked before it starts |
 //! | [`supervisor`] | the run's child processes, restarts, progress, shutdown |
@@ -35,7 +34,6 @@ pub mod process;
 pub mod progress;
 pub mod record;
 pub mod restart;
-pub mod select;
 pub mod sizes;
 pub mod stats;
 pub mod supervisor;

@@ -20,7 +20,7 @@ use fulcrum_shared::World;
 use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
-use crate::select::objects_or_default;
+use fulcrum_empowerment::request::objects_or_default;
 use fulcrum_shared::load_world;
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).

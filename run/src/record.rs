@@ -20,7 +20,7 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::bad;
-use crate::select::{engine, objects_or_default, tool_sel};
+use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 
 /// Plays `episodes` episodes of the run's policy and draws each as
 /// `out/episode-<k>.png`; returns the paths.

@@ -159,6 +159,7 @@ impl FromStr for Intrinsic {
 /// and first-visit, Phi(s_{t+1}) for horizon-potential, N(s_{t+1}) (>= 1) for count;
 /// `value_now` is the potential of s_t (the potential forms only). First-visit's "once
 /// per inventory" is kept by [`Shaping::chunk`]; here it pays E(s_{t+1}).
+#[inline]
 pub fn bonus(
     form: Intrinsic,
     gamma: f32,
@@ -214,8 +215,9 @@ impl Shaping {
         out: &mut [f32],
     ) {
         let m = phi.len();
+        // Time-major, i = t * m + e: `e` counts round the worlds (no division per item).
+        let mut e = 0;
         for (i, b) in out.iter_mut().enumerate() {
-            let e = i % m;
             let ended = terminated[i] == 1 || truncated[i] == 1;
             *b = bonus(self.form, self.gamma, phi[e], next[i], terminated[i] == 1);
             phi[e] = if ended { self.phi_reset } else { next[i] };
@@ -234,6 +236,10 @@ impl Shaping {
                 // The next episode starts from the initial state: nothing paid yet.
                 paid[e] = false;
                 inv[e] = self.inventory_reset;
+            }
+            e += 1;
+            if e == m {
+                e = 0;
             }
         }
     }

@@ -9,7 +9,9 @@ use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
-use fulcrum_run::select::{engine, holding_mask, object_set, objects_or_default, tool_sel};
+use fulcrum_empowerment::request::{
+    engine, holding_mask, matrix_columns, object_set, objects_or_default, tool_sel,
+};
 use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::load_world as world;
 
@@ -41,30 +43,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
             a.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped),
         ),
     };
-    let mut columns: Vec<ObjectSet> = match &a.objects {
-        Some(list) => list
-            .split(',')
-            .map(|n| object_set(&w, n.trim()))
-            .collect::<Result<_>>()?,
-        None => (0..w.objects.len())
-            .map(|i| ObjectSet::Objects(vec![i]))
-            .collect(),
-    };
-    for j in &a.joint {
-        columns.push(object_set(&w, j)?);
-    }
-    if columns.is_empty() {
-        return bad(format!(
-            "world '{}' has no objects: nothing to put in the matrix's columns",
-            w.name
-        ));
-    }
-    if w.tools.is_empty() {
-        return bad(format!(
-            "world '{}' has no tools: the matrix has no rows",
-            w.name
-        ));
-    }
+    let columns = matrix_columns(&w, a.objects.as_deref(), &a.joint)?;
     let t0 = Instant::now();
     let e = engine(&w)?;
     let m = e.matrix(&columns, hu, he, a.method.into())?;

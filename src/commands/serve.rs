@@ -9,8 +9,8 @@ use fulcrum_empowerment::{set_name, Method, ToolSel};
 use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
+use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 use fulcrum_run::bad;
-use fulcrum_run::select::{engine, objects_or_default, tool_sel};
 use fulcrum_shared::load_world as world;
 
 /// Run the service until SIGINT or SIGTERM.

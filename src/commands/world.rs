@@ -8,7 +8,7 @@ use fulcrum_shared::{parse_world, ObjectSet, Task, ToolChoice, World};
 use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
-use fulcrum_run::select::engine;
+use fulcrum_empowerment::request::engine;
 use fulcrum_shared::fsio::write_atomic;
 use fulcrum_shared::load_world as world;
 

@@ -43,8 +43,8 @@ type QueryKey = (i32, u32, u32);
 pub struct Tables<'w> {
     engine: Engine<'w>,
     pub(super) cfg: ServeConfig,
-    unequipped: Vec<f32>,
-    equipped: Vec<f32>,
+    /// LOOKUP's answer per state id ([`Engine::lookup_values`]).
+    values: Vec<f32>,
     /// QUERY results, oldest first, within `cfg.cache_bytes`.
     cache: VecDeque<(QueryKey, Vec<f32>)>,
     describe: Describe,
@@ -55,33 +55,16 @@ pub struct Tables<'w> {
 impl<'w> Tables<'w> {
     /// Precompute the configuration's tables.
     pub fn new(engine: Engine<'w>, cfg: ServeConfig) -> Result<Self, ServiceError> {
-        let f = |v: &Vec<u32>| {
-            v.iter()
-                .map(|&c| (c as f64).log2() as f32)
-                .collect::<Vec<f32>>()
-        };
-        let (unequipped, equipped) = if cfg.horizon_sum {
-            // Every horizon 1..=H in one propagation; Phi is their sum (f64, then f32).
-            let h = cfg.horizon_unequipped.max(cfg.horizon_equipped);
-            let hs: Vec<u32> = (1..=h).collect();
-            let counts = engine.counts(cfg.tool, &cfg.objects, &hs, Method::Dp)?;
-            let phi: Vec<f32> = (0..engine.space.len())
-                .map(|i| counts.iter().map(|c| (c[i] as f64).log2()).sum::<f64>() as f32)
-                .collect();
-            (phi.clone(), phi)
-        } else {
-            let counts = engine.counts(
-                cfg.tool,
-                &cfg.objects,
-                &[cfg.horizon_unequipped, cfg.horizon_equipped],
-                Method::Dp,
-            )?;
-            (f(&counts[0]), f(&counts[1]))
-        };
+        let values = engine.lookup_values(
+            cfg.tool,
+            &cfg.objects,
+            cfg.horizon_unequipped,
+            cfg.horizon_equipped,
+            cfg.horizon_sum,
+        )?;
         let describe = describe(&engine, &cfg);
         Ok(Tables {
-            unequipped,
-            equipped,
+            values,
             engine,
             cfg,
             cache: VecDeque::new(),
@@ -99,15 +82,7 @@ impl<'w> Tables<'w> {
     /// state outside the state space.
     pub fn lookup(&self, s: &State) -> Option<f32> {
         let id = self.engine.space.id(s)?;
-        Some(self.value_at(s, id as usize))
-    }
-
-    fn value_at(&self, s: &State, id: usize) -> f32 {
-        if self.cfg.tool.held(s) {
-            self.equipped[id]
-        } else {
-            self.unequipped[id]
-        }
+        Some(self.values[id as usize])
     }
 
     /// Answer one request into `out` (all-zero on entry).
@@ -138,7 +113,7 @@ impl<'w> Tables<'w> {
         for i in 0..n {
             let s = State::from_bytes(&req.states[i]);
             match space.id(&s) {
-                Some(id) => out.values[i] = self.value_at(&s, id as usize),
+                Some(id) => out.values[i] = self.values[id as usize],
                 None => out.item_status[i] = item::NOT_IN_SPACE,
             }
         }
