@@ -12,6 +12,7 @@ use serde_json::json;
 use crate::cli::BenchArgs;
 
 mod engine;
+mod python;
 #[cfg(feature = "multihost")]
 pub mod remote;
 mod scaling;
@@ -131,6 +132,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         chunk_transport(a.quick, &mut figs)?;
         end_to_end(a.quick, &mut figs)?;
         time_to_solve(&mut figs)?;
+        python::python_figures(a.quick, &mut figs)?;
     }
 
     println!(

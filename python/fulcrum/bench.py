@@ -1,0 +1,115 @@
+"""Throughput of the Python package: ``python -m fulcrum.bench [--quick] [--json]``.
+
+Figures, from alternating repetitions in this one process, one core:
+
+- ``make_vec``: env steps per second of a 64-world vector environment stepped from
+  Python with random actions (drawn beforehand with numpy, outside the timing), the
+  loop a researcher's rollout would run;
+- the same through ``EmpowermentReward`` (the paper's additive bonus), and what the
+  lookups add to a step, in percent;
+- MiniGrid's DoorKey-5x5 (a small room with a key and a door, the closest MiniGrid
+  task), 64 worlds in gymnasium's synchronous vector environment, stepped the same way,
+  and fulcrum's ratio to it, when ``minigrid`` is installed.
+
+``fulcrum bench`` runs this module when the package is importable and adds its figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+
+import numpy as np
+
+import fulcrum
+from fulcrum.wrappers import EmpowermentReward
+
+NUM_ENVS = 64
+
+
+def _rate(env, actions: np.ndarray) -> float:
+    """Env steps per second of stepping ``env`` through ``actions`` (T, N)."""
+    step = env.step
+    t0 = time.perf_counter()
+    for a in actions:
+        step(a)
+    return actions.size / (time.perf_counter() - t0)
+
+
+def _minigrid():
+    try:
+        import gymnasium as gym
+        import minigrid  # noqa: F401  (registers the MiniGrid environments)
+    except ImportError:
+        return None
+    env = gym.make_vec("MiniGrid-DoorKey-5x5-v0", num_envs=NUM_ENVS, vectorization_mode="sync")
+    env.reset(seed=0)
+    return env
+
+
+def run(quick: bool = False) -> dict:
+    """The figures. The machine's speed drifts over seconds, so plain and wrapped
+    stepping alternate in short blocks: each steps/s figure is the median over its
+    blocks, and the overhead is the median of the ratios of adjacent blocks."""
+    blocks = 40 if quick else 200
+    steps = 500
+    rng = np.random.default_rng(0)
+    plain = fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0)
+    wrapped = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0))
+    n_actions = plain.single_action_space.n
+    actions = rng.integers(0, n_actions, size=(steps, NUM_ENVS), dtype=np.int64)
+    _rate(plain, actions), _rate(wrapped, actions)  # warm-up
+    p_rates, w_rates, ratios = [], [], []
+    for _ in range(blocks):
+        p, w = _rate(plain, actions), _rate(wrapped, actions)
+        p_rates.append(p)
+        w_rates.append(w)
+        ratios.append(p / w)
+    out = {
+        "num_envs": NUM_ENVS,
+        "world": "exp1-tree",
+        "make_vec_steps_per_s": statistics.median(p_rates),
+        "wrapped_steps_per_s": statistics.median(w_rates),
+        # Time per wrapped step over time per plain step, minus one.
+        "wrapper_overhead_percent": (statistics.median(ratios) - 1.0) * 100.0,
+        "blocks": blocks,
+        "steps_per_block": steps * NUM_ENVS,
+    }
+    mg = _minigrid()
+    if mg is not None:
+        mg_actions = rng.integers(0, 7, size=(100, NUM_ENVS), dtype=np.int64)
+        _rate(mg, mg_actions)
+        mg_rates, fulcrum_rates = [], []
+        for _ in range(3 if quick else 7):
+            mg_rates.append(_rate(mg, mg_actions))
+            fulcrum_rates.append(_rate(plain, actions))
+        out["minigrid_steps_per_s"] = statistics.median(mg_rates)
+        out["ratio_to_minigrid"] = statistics.median(fulcrum_rates) / out["minigrid_steps_per_s"]
+    return out
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--quick", action="store_true", help="fewer, shorter repetitions")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    a = p.parse_args()
+    r = run(a.quick)
+    if a.json:
+        print(json.dumps(r))
+        return
+    print(f"make_vec exp1-tree x {NUM_ENVS}, random actions: {r['make_vec_steps_per_s']:,.0f} env steps/s")
+    print(
+        f"  with EmpowermentReward: {r['wrapped_steps_per_s']:,.0f} env steps/s "
+        f"(+{r['wrapper_overhead_percent']:.1f}% per step)"
+    )
+    if "minigrid_steps_per_s" in r:
+        print(
+            f"MiniGrid DoorKey-5x5 x {NUM_ENVS} (sync vector env): "
+            f"{r['minigrid_steps_per_s']:,.0f} env steps/s; fulcrum x{r['ratio_to_minigrid']:.0f}"
+        )
+
+
+if __name__ == "__main__":
+    main()

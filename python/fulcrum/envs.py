@@ -1,0 +1,246 @@
+"""Gymnasium environments over fulcrum's tool worlds.
+
+Observation (a ``Dict``), for a ``W x H`` world with ``n`` tools:
+
+- ``glyphs``: uint8 ``(H, W)``, a glyph id per cell: 0 rock, 1 floor, 2 goal, 3 agent,
+  4 tree, 5 wall, 6 closed door, 7 open door, 8 boulder, 9 + k tool k on the floor;
+- ``flags``: uint8 ``(2n + 2,)``: held tool k at k, then the mode one-hot (normal,
+  choosing-tool, choosing-direction(k)).
+
+Actions: ``Discrete(5 + n)``: N, E, S, W, apply, then select tool k. Every action is
+legal in every state (the world turns a useless one into "nothing happens");
+``info["action_mask"]`` (int8, 1 = can do something) is the per-mode mask that
+``fulcrum train`` samples with.
+
+The vector environment writes its observations, rewards and flags into numpy arrays it
+owns, in place: the arrays a step returns are the same objects every step, valid until
+the next step (copy what you keep). Autoreset is gymnasium's next-step mode.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode
+from gymnasium.vector.utils import batch_space
+
+from fulcrum import _native
+
+# Glyph ids (``fulcrum_shared::env``); tool k on the floor is ``GLYPH_TOOL0 + k``.
+GLYPH_NAMES = (
+    "rock",
+    "floor",
+    "goal",
+    "agent",
+    "tree",
+    "wall",
+    "door-closed",
+    "door-open",
+    "boulder",
+)
+GLYPH_TOOL0 = 9
+
+
+def _spaces(world: _native.World) -> tuple[spaces.Dict, spaces.Discrete]:
+    n = len(world.tools)
+    obs = spaces.Dict(
+        {
+            "glyphs": spaces.Box(
+                0, GLYPH_TOOL0 + n - 1, (world.height, world.width), np.uint8
+            ),
+            "flags": spaces.Box(0, 1, (2 * n + 2,), np.uint8),
+        }
+    )
+    return obs, spaces.Discrete(len(world.actions))
+
+
+def _first_seed(seed: int | list[int] | None) -> int | None:
+    if isinstance(seed, (list, tuple)):
+        return None if len(seed) == 0 or seed[0] is None else int(seed[0])
+    return seed
+
+
+class FulcrumVectorEnv(gym.vector.VectorEnv):
+    """``num_envs`` episodes of one world, stepped together in Rust.
+
+    ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path.
+    """
+
+    metadata = {
+        "render_modes": ["rgb_array"],
+        "render_fps": 4,
+        "autoreset_mode": AutoresetMode.NEXT_STEP,
+    }
+
+    def __init__(
+        self,
+        world: str | _native.World = "exp1-tree",
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        tile: int = 16,
+    ):
+        if render_mode not in (None, "rgb_array"):
+            raise ValueError(
+                f"render_mode '{render_mode}' is not offered: rgb_array or None"
+            )
+        self._core = _native.VecCore(world, int(num_envs))
+        self.world = self._core.world
+        self.num_envs = int(num_envs)
+        self.render_mode = render_mode
+        self.tile = tile
+        self.single_observation_space, self.single_action_space = _spaces(self.world)
+        self.observation_space = batch_space(
+            self.single_observation_space, self.num_envs
+        )
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        core = self._core
+        self._obs = {"glyphs": core.glyphs, "flags": core.flags}
+        self._reward = core.reward
+        self._terminated = core.terminated
+        self._truncated = core.truncated
+        self._info = {"action_mask": core.action_mask}
+        # Every step returns these same objects (rewritten in place by the core): one
+        # tuple made once, so that a step makes no Python object at all.
+        self._step_core = core.step
+        self._result = (
+            self._obs,
+            self._reward,
+            self._terminated,
+            self._truncated,
+            self._info,
+        )
+
+    @property
+    def states(self) -> np.ndarray:
+        """uint8 ``(num_envs, 38)``: the packed states (for :class:`ServiceClient`)."""
+        return self._core.states
+
+    def reset(
+        self,
+        *,
+        seed: int | list[int] | None = None,
+        options: dict[str, Any] | None = None,
+    ):
+        """Every episode (or those of ``options["reset_mask"]``) back to the start.
+
+        The worlds are deterministic: ``seed`` seeds ``action_space`` and
+        ``np_random`` only.
+        """
+        first = _first_seed(seed)
+        super().reset(seed=first)
+        if first is not None:
+            self.action_space.seed(first)
+        mask = None
+        if options and options.get("reset_mask") is not None:
+            mask = np.ascontiguousarray(options["reset_mask"], dtype=np.bool_)
+        self._core.reset(mask)
+        return self._obs, self._info
+
+    def step(self, actions):
+        self._step_core(actions)
+        return self._result
+
+    def render(self):
+        """A tuple of RGB arrays, one per environment (``render_mode="rgb_array"``)."""
+        if self.render_mode != "rgb_array":
+            return None
+        return tuple(self._core.render(e, self.tile) for e in range(self.num_envs))
+
+    def describe(self, e: int) -> str:
+        """The text description of environment ``e``'s state."""
+        return self._core.describe(e)
+
+
+class FulcrumEnv(gym.Env):
+    """One episode of a world (``gymnasium.make("fulcrum/exp1-tree-v0")``).
+
+    Observations are copies; ``info["action_mask"]`` is the per-mode mask.
+    """
+
+    metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
+
+    def __init__(
+        self,
+        world: str | _native.World = "exp1-tree",
+        render_mode: str | None = None,
+        tile: int = 16,
+    ):
+        if render_mode not in (None, "rgb_array", "ansi"):
+            raise ValueError(
+                f"render_mode '{render_mode}' is not offered: rgb_array, ansi or None"
+            )
+        self._core = _native.VecCore(world, 1)
+        self.world = self._core.world
+        self.render_mode = render_mode
+        self.tile = tile
+        self.observation_space, self.action_space = _spaces(self.world)
+        self._ended = False
+
+    def _observe(self):
+        c = self._core
+        obs = {"glyphs": c.glyphs[0].copy(), "flags": c.flags[0].copy()}
+        return obs, {"action_mask": c.action_mask[0].copy()}
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self._core.reset(None)
+        self._ended = False
+        return self._observe()
+
+    def step(self, action):
+        if self._ended:
+            raise RuntimeError(
+                "the episode has ended: call reset() before stepping again"
+            )
+        self._core.step(np.array([action], dtype=np.int64))
+        c = self._core
+        terminated = bool(c.terminated[0])
+        truncated = bool(c.truncated[0])
+        self._ended = terminated or truncated
+        obs, info = self._observe()
+        return obs, float(c.reward[0]), terminated, truncated, info
+
+    def render(self):
+        if self.render_mode == "rgb_array":
+            return self._core.render(0, self.tile)
+        if self.render_mode == "ansi":
+            return "\n".join(self.world.render_text(self._core.states[0].tobytes())) + "\n"
+        return None
+
+    @property
+    def state(self) -> bytes:
+        """The packed state (38 bytes)."""
+        return self._core.states[0].tobytes()
+
+    def describe(self) -> str:
+        """The text description of the state."""
+        return self._core.describe(0)
+
+
+def make_vec(
+    world: str | _native.World = "exp1-tree",
+    num_envs: int = 1,
+    seed: int | None = None,
+    render_mode: str | None = None,
+) -> FulcrumVectorEnv:
+    """A :class:`FulcrumVectorEnv`, reset (with ``seed`` if given)."""
+    env = FulcrumVectorEnv(world, num_envs=num_envs, render_mode=render_mode)
+    env.reset(seed=seed)
+    return env
+
+
+def register_envs() -> None:
+    """Register ``fulcrum/<world>-v0`` for each built-in world (single and vector)."""
+    for name in _native.builtin_worlds():
+        env_id = f"fulcrum/{name}-v0"
+        if env_id in gym.registry:
+            continue
+        gym.register(
+            id=env_id,
+            entry_point="fulcrum.envs:FulcrumEnv",
+            vector_entry_point="fulcrum.envs:FulcrumVectorEnv",
+            kwargs={"world": name},
+        )

@@ -1,0 +1,369 @@
+//! The intrinsic reward beside a [`VecCore`](crate::venv::VecCore): what the Python
+//! wrapper `fulcrum.wrappers.EmpowermentReward` adds to the task reward.
+//!
+//! For a transition s_t -> s_{t+1} with task reward r_t the total is r_t + beta * b_t,
+//! b_t by form exactly as in training (`fulcrum_shared::intrinsic`, the same code):
+//! additive b_t = E(s_{t+1}) (the paper's equation (1)); potential
+//! gamma E(s_{t+1}) - E(s_t); horizon-potential the same with Phi = sum over h of E^h;
+//! first-visit E(s_{t+1}) once per inventory and episode; count 1 / sqrt(N(s_{t+1})).
+//! E is the exact table of the empowerment service (`Engine::lookup_values`): E^{h_e}
+//! where the tool is held, E^{h_u} elsewhere. Each environment's state id is followed
+//! through the state space's successor table, so a lookup is one array read.
+//!
+//! Output arrays, float32 (N,): `total` (r + beta b), `intrinsic` (beta b) and `value`
+//! (E(s_{t+1}), Phi(s_{t+1}) or N(s_{t+1})). A reset step of the next-step autoreset pays
+//! nothing.
+
+use std::str::FromStr;
+
+use fulcrum_empowerment::{request, Engine, EngineError, ToolSel};
+use fulcrum_shared::intrinsic::{bonus, Intrinsic, Shaping};
+use fulcrum_shared::{Episode, MAX_HORIZON};
+use numpy::{PyArray1, PyArrayMethods};
+use pyo3::prelude::*;
+
+use crate::errors::{value_error, IntoPy};
+use crate::venv::{checked, Views};
+
+/// What `EmpowermentReward` asks for; `None` takes the world's `[empowerment]` value.
+#[derive(Debug)]
+pub(crate) struct Settings<'a> {
+    pub form: &'a str,
+    pub beta: Option<f64>,
+    pub tool: Option<&'a str>,
+    pub objects: Option<&'a str>,
+    pub horizon_unequipped: Option<u32>,
+    pub horizon_equipped: Option<u32>,
+    pub gamma: f64,
+}
+
+/// One attached intrinsic reward and its per-environment state.
+#[derive(Debug)]
+pub(crate) struct Shaper {
+    shaping: Shaping,
+    beta: f32,
+    /// E or Phi per state id (empty for the count and none forms).
+    values: Vec<f32>,
+    /// Visits per state id (the count form).
+    visits: Vec<u32>,
+    init_id: u32,
+    ids: Vec<u32>,
+    phi: Vec<f32>,
+    inv: Vec<u16>,
+    paid: Vec<bool>,
+    total: Py<PyArray1<f32>>,
+    intrinsic: Py<PyArray1<f32>>,
+    value: Py<PyArray1<f32>>,
+    summary: String,
+    scratch: Scratch,
+}
+
+/// One step's inputs to [`Shaping::chunk`] and its output, per environment.
+#[derive(Debug)]
+struct Scratch {
+    next: Vec<f32>,
+    next_inv: Vec<u16>,
+    terminated: Vec<u8>,
+    truncated: Vec<u8>,
+    bonus: Vec<f32>,
+}
+
+/// The output arrays: total reward, intrinsic part, value looked up.
+pub(crate) type Outputs = (Py<PyArray1<f32>>, Py<PyArray1<f32>>, Py<PyArray1<f32>>);
+
+/// A shaper's output arrays, bound for one call.
+pub(crate) struct ShaperBufs<'py> {
+    total: Bound<'py, PyArray1<f32>>,
+    intrinsic: Bound<'py, PyArray1<f32>>,
+    value: Bound<'py, PyArray1<f32>>,
+}
+
+/// A shaper's output arrays as slices.
+pub(crate) struct ShaperViews<'a> {
+    total: &'a mut [f32],
+    intrinsic: &'a mut [f32],
+    value: &'a mut [f32],
+}
+
+impl ShaperBufs<'_> {
+    /// # Safety
+    /// As [`crate::venv`]'s views: nothing else uses these arrays' data meanwhile.
+    pub(crate) unsafe fn views(&self, n: usize) -> PyResult<ShaperViews<'_>> {
+        unsafe {
+            Ok(ShaperViews {
+                total: checked("total reward", self.total.as_slice_mut(), n)?,
+                intrinsic: checked("intrinsic reward", self.intrinsic.as_slice_mut(), n)?,
+                value: checked("empowerment", self.value.as_slice_mut(), n)?,
+            })
+        }
+    }
+}
+
+impl Shaper {
+    pub(crate) fn new(
+        py: Python<'_>,
+        engine: &Engine<'_>,
+        n: usize,
+        s: Settings<'_>,
+    ) -> PyResult<Shaper> {
+        let w = engine.world;
+        let form = Intrinsic::from_str(s.form).map_err(value_error)?;
+        let beta = s.beta.unwrap_or(form.default_beta(w.empowerment.beta));
+        if !beta.is_finite() {
+            return Err(value_error(format!("beta is {beta}: give a finite number")));
+        }
+        if !(s.gamma.is_finite() && (0.0..=1.0).contains(&s.gamma)) {
+            return Err(value_error(format!(
+                "gamma is {}: give a number in [0, 1]",
+                s.gamma
+            )));
+        }
+        let hu = s
+            .horizon_unequipped
+            .unwrap_or(w.empowerment.horizon_unequipped);
+        let he = s.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped);
+        for h in [hu, he] {
+            if h > MAX_HORIZON {
+                return Err(EngineError::HorizonTooLarge {
+                    h,
+                    max: MAX_HORIZON,
+                })
+                .py_err();
+            }
+        }
+        let space_len = engine.space.len();
+        let (values, summary) = if form.uses_empowerment() {
+            let set = request::objects_or_default(w, s.objects).py_err()?;
+            let tool = request::tool_sel(w, engine, s.tool, &set).py_err()?;
+            let values = py
+                .detach(|| engine.lookup_values(tool, &set, hu, he, form.horizon_sum()))
+                .py_err()?;
+            let what = match tool {
+                ToolSel::All => "all".to_string(),
+                t => t.name(w),
+            };
+            let summary = format!(
+                "{form}: beta {beta}, {what} -> {}, h {hu} unequipped / {he} equipped, gamma {}",
+                fulcrum_empowerment::set_name(w, &set),
+                s.gamma
+            );
+            (values, summary)
+        } else {
+            (Vec::new(), format!("{form}: beta {beta}"))
+        };
+        let init_id = engine.state_id(&w.initial).py_err()?;
+        let phi_reset = if form.is_potential() {
+            values[init_id as usize]
+        } else {
+            0.0
+        };
+        Ok(Shaper {
+            shaping: Shaping {
+                form,
+                gamma: s.gamma as f32,
+                phi_reset,
+                inventory_reset: w.initial.inventory,
+            },
+            beta: beta as f32,
+            visits: if form == Intrinsic::Count {
+                vec![0; space_len]
+            } else {
+                Vec::new()
+            },
+            values,
+            init_id,
+            ids: vec![init_id; n],
+            phi: vec![phi_reset; n],
+            inv: vec![w.initial.inventory; n],
+            paid: vec![false; n],
+            total: PyArray1::zeros(py, [n], false).unbind(),
+            intrinsic: PyArray1::zeros(py, [n], false).unbind(),
+            value: PyArray1::zeros(py, [n], false).unbind(),
+            summary,
+            scratch: Scratch {
+                next: vec![0.0; n],
+                next_inv: vec![0; n],
+                terminated: vec![0; n],
+                truncated: vec![0; n],
+                bonus: vec![0.0; n],
+            },
+        })
+    }
+
+    /// Take the episodes' current states as the start (attaching mid-episode).
+    pub(crate) fn sync(&mut self, engine: &Engine<'_>, eps: &[Episode]) -> PyResult<()> {
+        for (e, ep) in eps.iter().enumerate() {
+            let id = engine.state_id(&ep.state).py_err()?;
+            self.ids[e] = id;
+            self.phi[e] = if self.shaping.form.is_potential() {
+                self.values[id as usize]
+            } else {
+                0.0
+            };
+            self.inv[e] = ep.state.inventory;
+            self.paid[e] = false;
+        }
+        Ok(())
+    }
+
+    /// The episodes where `which` is true start again.
+    pub(crate) fn reset(&mut self, py: Python<'_>, which: &[bool]) -> PyResult<()> {
+        let b = self.bufs(py);
+        // SAFETY: as in `views`.
+        let v = unsafe { b.views(which.len())? };
+        for (e, _) in which.iter().enumerate().filter(|(_, &w)| w) {
+            self.ids[e] = self.init_id;
+            self.phi[e] = self.shaping.phi_reset;
+            self.inv[e] = self.shaping.inventory_reset;
+            self.paid[e] = false;
+            v.total[e] = 0.0;
+            v.intrinsic[e] = 0.0;
+            v.value[e] = 0.0;
+        }
+        Ok(())
+    }
+
+    pub(crate) fn bufs<'py>(&self, py: Python<'py>) -> ShaperBufs<'py> {
+        ShaperBufs {
+            total: self.total.bind(py).clone(),
+            intrinsic: self.intrinsic.bind(py).clone(),
+            value: self.value.bind(py).clone(),
+        }
+    }
+
+    pub(crate) fn arrays(&self, py: Python<'_>) -> Outputs {
+        (
+            self.total.clone_ref(py),
+            self.intrinsic.clone_ref(py),
+            self.value.clone_ref(py),
+        )
+    }
+
+    pub(crate) fn summary(&self) -> String {
+        self.summary.clone()
+    }
+
+    /// The intrinsic reward of the step just taken (`v` holds its task rewards and flags).
+    pub(crate) fn after_step(
+        &mut self,
+        engine: &Engine<'_>,
+        eps: &[Episode],
+        acts: &[u8],
+        was_reset: &[bool],
+        v: &Views<'_>,
+        out: &mut ShaperViews<'_>,
+    ) {
+        let form = self.shaping.form;
+        let n = eps.len();
+        if form == Intrinsic::Additive {
+            // The paper's form, b_t = E(s_{t+1}) (`intrinsic::bonus`): one tight pass.
+            let (succ, na) = (engine.space.succ_table(), engine.space.num_actions());
+            let (beta, init) = (self.beta, self.init_id);
+            let outs = out
+                .total
+                .iter_mut()
+                .zip(out.intrinsic.iter_mut())
+                .zip(out.value.iter_mut());
+            let ins = self
+                .ids
+                .iter_mut()
+                .zip(acts)
+                .zip(was_reset)
+                .zip(v.reward.iter());
+            for ((((id, &a), &reset), &r), ((total, intrinsic), value)) in ins.zip(outs) {
+                if reset {
+                    *id = init;
+                    (*total, *intrinsic, *value) = (0.0, 0.0, 0.0);
+                    continue;
+                }
+                *id = succ[*id as usize * na + a as usize];
+                let e = self.values[*id as usize];
+                *intrinsic = beta * e;
+                *total = r + beta * e;
+                *value = e;
+            }
+            return;
+        }
+        if !form.is_potential() && form != Intrinsic::FirstVisit {
+            // The other forms without per-episode state (count, none): one pass, b_t
+            // from s_{t+1} alone.
+            for e in 0..n {
+                if was_reset[e] {
+                    self.ids[e] = self.init_id;
+                    out.total[e] = 0.0;
+                    out.intrinsic[e] = 0.0;
+                    out.value[e] = 0.0;
+                    continue;
+                }
+                let id = engine.space.succ(self.ids[e], acts[e]);
+                self.ids[e] = id;
+                let next = match form {
+                    Intrinsic::Count => {
+                        let c = &mut self.visits[id as usize];
+                        *c = c.saturating_add(1);
+                        *c as f32
+                    }
+                    Intrinsic::None => 0.0,
+                    _ => self.values[id as usize],
+                };
+                let b = bonus(form, self.shaping.gamma, 0.0, next, v.terminated[e]);
+                let intrinsic = self.beta * b;
+                out.intrinsic[e] = intrinsic;
+                out.total[e] = v.reward[e] + intrinsic;
+                out.value[e] = next;
+            }
+            return;
+        }
+        let s = &mut self.scratch;
+        for e in 0..n {
+            if was_reset[e] {
+                // The step that started a new episode: no transition (fixed up below).
+                self.ids[e] = self.init_id;
+                s.next[e] = 0.0;
+                s.next_inv[e] = self.shaping.inventory_reset;
+                s.terminated[e] = 0;
+                s.truncated[e] = 0;
+                continue;
+            }
+            let id = engine.space.succ(self.ids[e], acts[e]);
+            self.ids[e] = id;
+            s.next[e] = match form {
+                Intrinsic::None => 0.0,
+                Intrinsic::Count => {
+                    let c = &mut self.visits[id as usize];
+                    *c = c.saturating_add(1);
+                    *c as f32
+                }
+                _ => self.values[id as usize],
+            };
+            s.next_inv[e] = eps[e].state.inventory;
+            s.terminated[e] = v.terminated[e] as u8;
+            s.truncated[e] = v.truncated[e] as u8;
+        }
+        // One time step of n worlds, as an actor's chunk is T of them.
+        self.shaping.chunk(
+            &s.next,
+            &s.next_inv,
+            &s.terminated,
+            &s.truncated,
+            &mut self.phi,
+            &mut self.inv,
+            &mut self.paid,
+            &mut s.bonus,
+        );
+        for (e, &reset) in was_reset.iter().enumerate().take(n) {
+            if reset {
+                // Nothing is paid, and the episode's potential and first-visit state stay
+                // as the end of the last episode left them: the start's.
+                s.bonus[e] = 0.0;
+                self.phi[e] = self.shaping.phi_reset;
+                self.inv[e] = self.shaping.inventory_reset;
+                self.paid[e] = false;
+            }
+            let intrinsic = self.beta * s.bonus[e];
+            out.intrinsic[e] = intrinsic;
+            out.total[e] = v.reward[e] + intrinsic;
+            out.value[e] = s.next[e];
+        }
+    }
+}

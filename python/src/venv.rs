@@ -1,0 +1,510 @@
+//! `VecCore`: N episodes of one world stepped together in Rust.
+//!
+//! Shapes, for N environments of a `W x H` world with `n` tools (|A| = 5 + n):
+//!
+//! | array | dtype | shape | what |
+//! |---|---|---|---|
+//! | `glyphs` | uint8 | (N, H, W) | glyph id per cell (`docs/world.md`, "Observations") |
+//! | `flags` | uint8 | (N, 2n + 2) | held tools, then the mode one-hot |
+//! | `action_mask` | int8 | (N, |A|) | 1 where the action can do something (training's mask) |
+//! | `reward` | float32 | (N,) | the task reward R of the last step |
+//! | `terminated`, `truncated` | bool | (N,) | the task ended / the time limit ran out |
+//! | `states` | uint8 | (N, 38) | the packed states (for the empowerment service) |
+//!
+//! The arrays are allocated once, as numpy arrays, and every step writes them in place:
+//! a step makes no Python object. Autoreset is gymnasium's next-step mode: the step after
+//! an episode ends resets that environment (its action is ignored) and reports reward 0,
+//! not terminated, not truncated, and the initial observation. The step itself runs with
+//! the GIL released; other threads must not touch these arrays while it runs.
+
+use std::sync::Arc;
+
+use fulcrum_shared::mask::action_mask;
+use fulcrum_shared::{Episode, ObsSpec, World};
+use numpy::{
+    PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+
+use crate::errors::value_error;
+use crate::shaper::{Shaper, ShaperBufs, ShaperViews};
+use crate::world::PyWorld;
+
+/// The most environments one `VecCore` steps.
+const MAX_ENVS: usize = 1 << 20;
+
+/// The most intrinsic rewards (`EmpowermentReward` wrappers) on one `VecCore`.
+const MAX_SHAPERS: usize = 4;
+
+/// N episodes of one world, their observation and step buffers.
+#[derive(Debug)]
+#[pyclass(module = "fulcrum._native")]
+pub struct VecCore {
+    pyworld: Py<PyWorld>,
+    world: Arc<World>,
+    spec: ObsSpec,
+    eps: Vec<Episode>,
+    /// The last step ended episode e: the next step resets it.
+    ended: Vec<bool>,
+    /// The last step was a reset step for episode e.
+    was_reset: Vec<bool>,
+    /// The last step's actions, checked.
+    acts: Vec<u8>,
+    glyphs: Py<PyArray3<u8>>,
+    flags: Py<PyArray2<u8>>,
+    mask: Py<PyArray2<i8>>,
+    reward: Py<PyArray1<f32>>,
+    terminated: Py<PyArray1<bool>>,
+    truncated: Py<PyArray1<bool>>,
+    states: Py<PyArray2<u8>>,
+    shapers: Vec<Shaper>,
+    steps: u64,
+}
+
+/// Mutable views of the step buffers, for one step with the GIL released.
+pub(crate) struct Views<'a> {
+    pub(crate) glyphs: &'a mut [u8],
+    pub(crate) flags: &'a mut [u8],
+    pub(crate) mask: &'a mut [i8],
+    pub(crate) reward: &'a mut [f32],
+    pub(crate) terminated: &'a mut [bool],
+    pub(crate) truncated: &'a mut [bool],
+    pub(crate) states: &'a mut [u8],
+}
+
+/// The step buffers, bound for one call.
+struct Bufs<'py> {
+    glyphs: Bound<'py, PyArray3<u8>>,
+    flags: Bound<'py, PyArray2<u8>>,
+    mask: Bound<'py, PyArray2<i8>>,
+    reward: Bound<'py, PyArray1<f32>>,
+    terminated: Bound<'py, PyArray1<bool>>,
+    truncated: Bound<'py, PyArray1<bool>>,
+    states: Bound<'py, PyArray2<u8>>,
+}
+
+/// `got` if it is a slice of `len` elements, else the error that says the array changed.
+pub(crate) fn checked<'b, T>(
+    what: &str,
+    got: Result<&'b mut [T], numpy::AsSliceError>,
+    len: usize,
+) -> PyResult<&'b mut [T]> {
+    match got {
+        Ok(v) if v.len() == len => Ok(v),
+        _ => Err(value_error(format!(
+            "the environment's {what} array was changed (resized or made non-contiguous): it must stay as the environment made it"
+        ))),
+    }
+}
+
+impl Bufs<'_> {
+    /// The buffers as slices, each checked for its length (a caller who resized an array
+    /// gets an error, not a write out of bounds).
+    ///
+    /// # Safety
+    /// No other reference to these arrays' data may be used while the views live: the
+    /// arrays are the environment's, handed to Python only to be read between calls.
+    unsafe fn views(&self, n: usize, spec: &ObsSpec, actions: usize) -> PyResult<Views<'_>> {
+        unsafe {
+            Ok(Views {
+                glyphs: checked("glyphs", self.glyphs.as_slice_mut(), n * spec.cells())?,
+                flags: checked("flags", self.flags.as_slice_mut(), n * spec.flags)?,
+                mask: checked("action_mask", self.mask.as_slice_mut(), n * actions)?,
+                reward: checked("reward", self.reward.as_slice_mut(), n)?,
+                terminated: checked("terminated", self.terminated.as_slice_mut(), n)?,
+                truncated: checked("truncated", self.truncated.as_slice_mut(), n)?,
+                states: checked(
+                    "states",
+                    self.states.as_slice_mut(),
+                    n * fulcrum_shared::msg::STATE_BYTES,
+                )?,
+            })
+        }
+    }
+}
+
+impl VecCore {
+    fn bufs<'py>(&self, py: Python<'py>) -> Bufs<'py> {
+        Bufs {
+            glyphs: self.glyphs.bind(py).clone(),
+            flags: self.flags.bind(py).clone(),
+            mask: self.mask.bind(py).clone(),
+            reward: self.reward.bind(py).clone(),
+            terminated: self.terminated.bind(py).clone(),
+            truncated: self.truncated.bind(py).clone(),
+            states: self.states.bind(py).clone(),
+        }
+    }
+
+    /// The actions of one step, checked: any integer array (or sequence) of length N with
+    /// values in 0..|A|.
+    fn read_actions(&mut self, actions: &Bound<'_, PyAny>) -> PyResult<()> {
+        // The common case, a contiguous int64 array: read in place. Anything else goes
+        // through numpy (lists, other integer dtypes, strided views) once.
+        if let Ok(a) = actions.cast::<PyArray1<i64>>() {
+            if a.is_contiguous() {
+                // SAFETY: read and copied at once while this thread holds the GIL.
+                let s = unsafe { a.as_slice() }
+                    .map_err(|_| value_error("actions must be contiguous"))?;
+                return self.copy_actions(s);
+            }
+        }
+        let np = actions.py().import("numpy")?;
+        let arr = np
+            .call_method1("asarray", (actions,))
+            .map_err(|_| value_error("actions must be integers, one per environment"))?;
+        let kind: String = arr.getattr("dtype")?.getattr("kind")?.extract()?;
+        if kind != "i" && kind != "u" {
+            return Err(value_error(format!(
+                "actions must be integers, not {}",
+                arr.getattr("dtype")?.str()?
+            )));
+        }
+        let arr = np.call_method1("ascontiguousarray", (arr, "int64"))?;
+        let a = arr.cast::<PyArray1<i64>>().map_err(|_| {
+            value_error(format!(
+                "actions must be a one-dimensional array of {} integers",
+                self.eps.len()
+            ))
+        })?;
+        // SAFETY: as above; the array is our own conversion.
+        let s = unsafe { a.as_slice() }.map_err(|_| value_error("actions must be contiguous"))?;
+        self.copy_actions(s)
+    }
+
+    /// Checks `a` (one action per environment, each in 0..|A|) into `acts`.
+    fn copy_actions(&mut self, a: &[i64]) -> PyResult<()> {
+        let n = self.eps.len();
+        let na = self.world.num_actions() as i64;
+        if a.len() != n {
+            return Err(value_error(format!(
+                "{} actions for {n} environments: give one per environment",
+                a.len()
+            )));
+        }
+        for (e, (&x, out)) in a.iter().zip(self.acts.iter_mut()).enumerate() {
+            if !(0..na).contains(&x) {
+                return Err(value_error(format!(
+                    "action {x} of environment {e} is out of range: world '{}' has actions 0..{}",
+                    self.world.name,
+                    na - 1
+                )));
+            }
+            *out = x as u8;
+        }
+        Ok(())
+    }
+}
+
+/// Writes episode `e`'s observation of its state (from scratch), mask and packed state.
+fn observe_all(w: &World, spec: &ObsSpec, ep: &Episode, e: usize, v: &mut Views<'_>) {
+    let (c, f, a) = (spec.cells(), spec.flags, w.num_actions());
+    let g = &mut v.glyphs[e * c..(e + 1) * c];
+    let fl = &mut v.flags[e * f..(e + 1) * f];
+    w.observe(&ep.state, g, fl);
+    write_mask(fl, &mut v.mask[e * a..(e + 1) * a]);
+    write_state(ep, &mut v.states[e * 38..(e + 1) * 38]);
+}
+
+#[inline]
+fn write_mask(flags: &[u8], out: &mut [i8]) {
+    let m = action_mask(flags);
+    for (k, o) in out.iter_mut().enumerate() {
+        *o = ((m >> k) & 1) as i8;
+    }
+}
+
+#[inline]
+fn write_state(ep: &Episode, out: &mut [u8]) {
+    out.copy_from_slice(&ep.state.to_bytes());
+}
+
+#[pymethods]
+impl VecCore {
+    /// `num_envs` episodes of `world`, each at the initial state.
+    #[new]
+    fn new(py: Python<'_>, world: &Bound<'_, PyAny>, num_envs: usize) -> PyResult<Self> {
+        if !(1..=MAX_ENVS).contains(&num_envs) {
+            return Err(value_error(format!(
+                "num_envs is {num_envs}: give 1 to {MAX_ENVS}"
+            )));
+        }
+        let pyworld = crate::world::world_arg(world)?;
+        let w = Arc::clone(&pyworld.get().world);
+        let spec = w.obs_spec();
+        let n = num_envs;
+        let na = w.num_actions();
+        let core = VecCore {
+            glyphs: PyArray3::zeros(py, [n, spec.height, spec.width], false).unbind(),
+            flags: PyArray2::zeros(py, [n, spec.flags], false).unbind(),
+            mask: PyArray2::zeros(py, [n, na], false).unbind(),
+            reward: PyArray1::zeros(py, [n], false).unbind(),
+            terminated: PyArray1::zeros(py, [n], false).unbind(),
+            truncated: PyArray1::zeros(py, [n], false).unbind(),
+            states: PyArray2::zeros(py, [n, fulcrum_shared::msg::STATE_BYTES], false).unbind(),
+            eps: vec![w.reset(); n],
+            ended: vec![false; n],
+            was_reset: vec![true; n],
+            acts: vec![0; n],
+            spec,
+            world: w,
+            pyworld,
+            shapers: Vec::new(),
+            steps: 0,
+        };
+        let mut me = core;
+        me.reset(py, None)?;
+        Ok(me)
+    }
+
+    /// Reset every episode, or those where `mask` is true.
+    #[pyo3(signature = (mask = None))]
+    fn reset(&mut self, py: Python<'_>, mask: Option<PyReadonlyArray1<bool>>) -> PyResult<()> {
+        let n = self.eps.len();
+        let which: Vec<bool> = match &mask {
+            Some(m) => {
+                let m = m
+                    .as_slice()
+                    .map_err(|_| value_error("reset_mask must be contiguous"))?;
+                if m.len() != n {
+                    return Err(value_error(format!(
+                        "reset_mask has {} entries for {n} environments",
+                        m.len()
+                    )));
+                }
+                m.to_vec()
+            }
+            None => vec![true; n],
+        };
+        let bufs = self.bufs(py);
+        // SAFETY: the arrays are only read by Python between calls (see `views`).
+        let mut v = unsafe { bufs.views(n, &self.spec, self.world.num_actions())? };
+        for e in (0..n).filter(|&e| which[e]) {
+            self.eps[e] = self.world.reset();
+            self.ended[e] = false;
+            self.was_reset[e] = true;
+            observe_all(&self.world, &self.spec, &self.eps[e], e, &mut v);
+            v.reward[e] = 0.0;
+            v.terminated[e] = false;
+            v.truncated[e] = false;
+        }
+        for sh in &mut self.shapers {
+            sh.reset(py, &which)?;
+        }
+        Ok(())
+    }
+
+    /// One step of every environment with `actions` (N integers in 0..|A|).
+    fn step(&mut self, py: Python<'_>, actions: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.read_actions(actions)?;
+        let pw = self.pyworld.clone_ref(py);
+        let engine = if self.shapers.is_empty() {
+            None
+        } else {
+            Some(pw.get().engine(py)?)
+        };
+        let n = self.eps.len();
+        let bufs = self.bufs(py);
+        // SAFETY: as in `reset`.
+        let v = unsafe { bufs.views(n, &self.spec, self.world.num_actions())? };
+        // At most MAX_SHAPERS, on the stack: a step allocates nothing.
+        let sbufs: [Option<ShaperBufs<'_>>; MAX_SHAPERS] =
+            std::array::from_fn(|i| self.shapers.get(i).map(|sh| sh.bufs(py)));
+        let mut sv: [Option<ShaperViews<'_>>; MAX_SHAPERS] = Default::default();
+        for (b, out) in sbufs.iter().zip(sv.iter_mut()) {
+            if let Some(b) = b {
+                // SAFETY: as above; each shaper's arrays are its own.
+                *out = Some(unsafe { b.views(n)? });
+            }
+        }
+        let (w, spec) = (&*self.world, &self.spec);
+        let (eps, ended, was_reset, acts, shapers) = (
+            &mut self.eps,
+            &mut self.ended,
+            &mut self.was_reset,
+            &self.acts,
+            &mut self.shapers,
+        );
+        py.detach(|| {
+            let (c, f, na) = (spec.cells(), spec.flags, w.num_actions());
+            for e in 0..eps.len() {
+                let g = &mut v.glyphs[e * c..(e + 1) * c];
+                let fl = &mut v.flags[e * f..(e + 1) * f];
+                let prev = eps[e].state;
+                if ended[e] {
+                    eps[e] = w.reset();
+                    ended[e] = false;
+                    was_reset[e] = true;
+                    v.reward[e] = 0.0;
+                    v.terminated[e] = false;
+                    v.truncated[e] = false;
+                } else {
+                    let o = w.env_step(&mut eps[e], acts[e]);
+                    ended[e] = o.terminated || o.truncated;
+                    was_reset[e] = false;
+                    v.reward[e] = o.reward;
+                    v.terminated[e] = o.terminated;
+                    v.truncated[e] = o.truncated;
+                }
+                w.observe_update(&prev, &eps[e].state, g, fl);
+                write_mask(fl, &mut v.mask[e * na..(e + 1) * na]);
+                write_state(&eps[e], &mut v.states[e * 38..(e + 1) * 38]);
+            }
+            if let Some(engine) = engine {
+                for (sh, out) in shapers.iter_mut().zip(sv.iter_mut().flatten()) {
+                    sh.after_step(engine, eps, acts, was_reset, &v, out);
+                }
+            }
+        });
+        self.steps += self.eps.len() as u64;
+        Ok(())
+    }
+
+    /// Attach an intrinsic reward (`EmpowermentReward`): after each step its arrays hold
+    /// the total reward R + beta * b, the intrinsic part beta * b and the value looked up
+    /// (E, Phi, or the visit count). Returns them as `(total, intrinsic, value)`.
+    #[pyo3(signature = (form, beta, tool, objects, horizon_unequipped, horizon_equipped, gamma))]
+    #[allow(clippy::too_many_arguments)]
+    fn attach_intrinsic(
+        &mut self,
+        py: Python<'_>,
+        form: &str,
+        beta: Option<f64>,
+        tool: Option<&str>,
+        objects: Option<&str>,
+        horizon_unequipped: Option<u32>,
+        horizon_equipped: Option<u32>,
+        gamma: f64,
+    ) -> PyResult<crate::shaper::Outputs> {
+        if self.shapers.len() == MAX_SHAPERS {
+            return Err(value_error(format!(
+                "this environment has {MAX_SHAPERS} intrinsic rewards attached already: at most {MAX_SHAPERS}"
+            )));
+        }
+        let pw = self.pyworld.clone_ref(py);
+        let engine = pw.get().engine(py)?;
+        let mut sh = Shaper::new(
+            py,
+            engine,
+            self.eps.len(),
+            crate::shaper::Settings {
+                form,
+                beta,
+                tool,
+                objects,
+                horizon_unequipped,
+                horizon_equipped,
+                gamma,
+            },
+        )?;
+        // Start from where the episodes are now.
+        sh.sync(engine, &self.eps)?;
+        let arrays = sh.arrays(py);
+        self.shapers.push(sh);
+        Ok(arrays)
+    }
+
+    /// The settings of the attached intrinsic rewards, in order.
+    #[getter]
+    fn intrinsic_settings(&self) -> Vec<String> {
+        self.shapers.iter().map(|s| s.summary()).collect()
+    }
+
+    /// uint8 (N, H, W): the glyph grids.
+    #[getter]
+    fn glyphs(&self, py: Python<'_>) -> Py<PyArray3<u8>> {
+        self.glyphs.clone_ref(py)
+    }
+
+    /// uint8 (N, 2n + 2): the flags.
+    #[getter]
+    fn flags(&self, py: Python<'_>) -> Py<PyArray2<u8>> {
+        self.flags.clone_ref(py)
+    }
+
+    /// int8 (N, |A|): the per-mode action masks.
+    #[getter]
+    fn action_mask(&self, py: Python<'_>) -> Py<PyArray2<i8>> {
+        self.mask.clone_ref(py)
+    }
+
+    /// float32 (N,): the last step's task rewards.
+    #[getter]
+    fn reward(&self, py: Python<'_>) -> Py<PyArray1<f32>> {
+        self.reward.clone_ref(py)
+    }
+
+    /// bool (N,): the last step reached the task's end.
+    #[getter]
+    fn terminated(&self, py: Python<'_>) -> Py<PyArray1<bool>> {
+        self.terminated.clone_ref(py)
+    }
+
+    /// bool (N,): the last step ran out of time.
+    #[getter]
+    fn truncated(&self, py: Python<'_>) -> Py<PyArray1<bool>> {
+        self.truncated.clone_ref(py)
+    }
+
+    /// uint8 (N, 38): the packed states.
+    #[getter]
+    fn states(&self, py: Python<'_>) -> Py<PyArray2<u8>> {
+        self.states.clone_ref(py)
+    }
+
+    /// The steps of each episode so far, (N,) uint32.
+    #[getter]
+    fn episode_steps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
+        PyArray1::from_iter(py, self.eps.iter().map(|e| e.t))
+    }
+
+    /// Environment steps taken in all (reset steps included).
+    #[getter]
+    fn total_steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Number of environments.
+    #[getter]
+    fn num_envs(&self) -> usize {
+        self.eps.len()
+    }
+
+    /// The world.
+    #[getter]
+    fn world(&self, py: Python<'_>) -> Py<PyWorld> {
+        self.pyworld.clone_ref(py)
+    }
+
+    /// Environment `e`'s state as an RGB picture (uint8, (H * tile, W * tile, 3)).
+    #[pyo3(signature = (e, tile = 16))]
+    fn render<'py>(
+        &self,
+        py: Python<'py>,
+        e: usize,
+        tile: usize,
+    ) -> PyResult<Bound<'py, PyArray3<u8>>> {
+        let ep = self.eps.get(e).ok_or_else(|| {
+            value_error(format!(
+                "environment {e} does not exist (there are {})",
+                self.eps.len()
+            ))
+        })?;
+        crate::render::rgb(py, &self.world, &ep.state, tile)
+    }
+
+    /// The text description of environment `e`'s state.
+    fn describe(&self, e: usize) -> PyResult<String> {
+        let ep = self.eps.get(e).ok_or_else(|| {
+            value_error(format!(
+                "environment {e} does not exist (there are {})",
+                self.eps.len()
+            ))
+        })?;
+        Ok(self.world.describe(&ep.state))
+    }
+
+    fn __repr__(&self) -> String {
+        format!("VecCore('{}' x {})", self.world.name, self.eps.len())
+    }
+}

@@ -1,0 +1,205 @@
+"""The gymnasium environments: spaces, dynamics against hand counts, autoreset, masks."""
+
+import numpy as np
+import pytest
+import gymnasium as gym
+from gymnasium.utils.env_checker import check_env
+
+import fulcrum
+from conftest import world_map
+
+WORLDS = ["exp1-tree", "exp1-wall", "exp2", "exp3", "room"]
+
+# Actions of exp1-tree: N E S W apply axe pickaxe tin_opener key.
+N, E, S, W, APPLY, AXE = 0, 1, 2, 3, 4, 5
+# From the start (1,4): up to the axe's row, east over the axe at (4,2) (picked up on
+# arrival) to (8,2), next to the tree at (9,2); apply, choose the axe, strike east.
+TO_THE_TREE = [N, N, E, E, E, E, E, E, E, APPLY, AXE, E]
+
+
+def glyph_ids(rows: list[str], tools: str) -> np.ndarray:
+    """A map's glyph ids, by the table of the observation (hand-written here)."""
+    table = {"#": 0, ".": 1, ">": 2, "@": 3, "T": 4, "=": 5, "+": 6, "'": 7, "0": 8}
+    for k, letter in enumerate(tools):
+        table[letter] = 9 + k
+    return np.array([[table[c] for c in row] for row in rows], dtype=np.uint8)
+
+
+@pytest.mark.parametrize("name", WORLDS)
+def test_registered_env_passes_gymnasiums_checker(name):
+    env = gym.make(f"fulcrum/{name}-v0")
+    check_env(env.unwrapped, skip_render_check=False)
+    env.close()
+
+
+def test_reset_and_step_shapes_and_dtypes():
+    env = fulcrum.make_vec("exp1-tree", num_envs=5, seed=0)
+    obs, info = env.reset(seed=0)
+    assert obs["glyphs"].shape == (5, 8, 12) and obs["glyphs"].dtype == np.uint8
+    assert obs["flags"].shape == (5, 10) and obs["flags"].dtype == np.uint8
+    assert info["action_mask"].shape == (5, 9) and info["action_mask"].dtype == np.int8
+    assert env.single_action_space == gym.spaces.Discrete(9)
+    assert env.action_space.shape == (5,)
+    assert obs in env.observation_space
+    obs, r, term, trunc, info = env.step(np.full(5, E))
+    assert r.shape == (5,) and r.dtype == np.float32
+    assert term.dtype == np.bool_ and trunc.dtype == np.bool_
+    assert obs in env.observation_space
+    assert env.states.shape == (5, fulcrum.STATE_BYTES)
+
+
+def test_initial_observation_is_the_map_of_the_world_file(repo):
+    env = fulcrum.make_vec("exp1-tree", num_envs=2)
+    obs, _ = env.reset()
+    expected = glyph_ids(world_map(repo, "exp1-tree"), "apok")
+    assert (obs["glyphs"][0] == expected).all()
+    assert (obs["glyphs"][1] == expected).all()
+    # Nothing held; mode normal (flag 4 + 0).
+    assert obs["flags"][0].tolist() == [0, 0, 0, 0, 1, 0, 0, 0, 0, 0]
+
+
+def test_a_move_redraws_the_agent_and_the_floor_it_left():
+    env = fulcrum.make_vec("exp1-tree", num_envs=1)
+    env.reset()
+    obs, *_ = env.step(np.array([E]))
+    assert obs["glyphs"][0, 4, 2] == 3 and obs["glyphs"][0, 4, 1] == 1
+    assert env.describe(0) == "agent=2,4 mode=normal tree=intact wall=intact"
+
+
+def test_the_hand_path_destroys_the_tree_then_next_step_autoresets(repo):
+    env = fulcrum.make_vec("exp1-tree", num_envs=2)
+    env.reset()
+    # Env 1 stays put against the west wall (W from (1,4) does nothing).
+    rewards, ends = [], []
+    for a in TO_THE_TREE:
+        obs, r, term, trunc, info = env.step(np.array([a, W]))
+        rewards.append(float(r[0]))
+        ends.append((bool(term[0]), bool(trunc[0])))
+    assert rewards == [0.0] * 11 + [1.0]
+    assert ends == [(False, False)] * 11 + [(True, False)]
+    # Holding the axe (flag 0), back in normal mode; the tree's cell shows floor.
+    assert obs["flags"][0, 0] == 1 and obs["flags"][0, 4] == 1
+    assert obs["glyphs"][0, 2, 9] == 1
+    # The next step resets env 0 (its action is ignored): reward 0, not ended, the
+    # initial map; env 1 steps as usual.
+    obs, r, term, trunc, _ = env.step(np.array([N, W]))
+    assert float(r[0]) == 0.0 and not term[0] and not trunc[0]
+    assert (obs["glyphs"][0] == glyph_ids(world_map(repo, "exp1-tree"), "apok")).all()
+    assert env.describe(0) == "agent=1,4 mode=normal tree=intact wall=intact"
+    assert env._core.episode_steps.tolist() == [0, 13]
+
+
+def test_truncation_at_max_steps_then_autoreset():
+    env = fulcrum.make_vec("exp1-tree", num_envs=1)
+    env.reset()
+    for t in range(1, 101):
+        _, r, term, trunc, _ = env.step(np.array([W]))
+        assert bool(trunc[0]) == (t == 100) and not term[0] and float(r[0]) == 0.0
+    env.step(np.array([E]))
+    assert env.describe(0) == "agent=1,4 mode=normal tree=intact wall=intact"
+
+
+def test_reset_mask_resets_only_the_masked_envs():
+    env = fulcrum.make_vec("exp1-tree", num_envs=3)
+    env.step(np.array([E, E, E]))
+    env.reset(options={"reset_mask": np.array([True, False, True])})
+    assert [env.describe(e).split()[0] for e in range(3)] == [
+        "agent=1,4",
+        "agent=2,4",
+        "agent=1,4",
+    ]
+
+
+def run_random(seed: int, steps: int = 300):
+    env = fulcrum.make_vec("exp2", num_envs=8)
+    env.reset(seed=seed)
+    out = []
+    for _ in range(steps):
+        a = env.action_space.sample()
+        obs, r, term, trunc, _ = env.step(a)
+        out.append((a.copy(), obs["glyphs"].copy(), r.copy(), term.copy()))
+    return out
+
+
+def test_same_seed_same_trajectory_other_seed_other_actions():
+    a, b, c = run_random(3), run_random(3), run_random(4)
+    for x, y in zip(a, b):
+        for u, v in zip(x, y):
+            assert np.array_equal(u, v)
+    assert any(not np.array_equal(x[0], z[0]) for x, z in zip(a, c))
+
+
+def reference_mask(flags: np.ndarray, n: int) -> np.ndarray:
+    """The per-mode mask from the flags, as the documentation's table states it."""
+    held = flags[:n].astype(bool)
+    mode = flags[n:]
+    m = np.zeros(5 + n, dtype=np.int8)
+    if mode[0]:  # normal: moves; apply when a tool is held
+        m[:4] = 1
+        m[4] = 1 if held.any() else 0
+    elif mode[1]:  # choosing a tool: the held tools
+        m[5:] = held
+    else:  # choosing a direction: moves
+        m[:4] = 1
+    return m
+
+
+@pytest.mark.parametrize("name", ["exp1-tree", "exp2", "exp3"])
+def test_the_mask_allows_only_actions_that_do_something(name):
+    env = fulcrum.make_vec(name, num_envs=16, seed=1)
+    world = env.world
+    n = len(world.tools)
+    rng = np.random.default_rng(1)
+    seen_modes = set()
+    _, info = env.reset()
+    for _ in range(400):
+        mask = info["action_mask"]
+        # Sample from the mask, as training does, so that prompts are reached often.
+        acts = np.array([rng.choice(np.flatnonzero(m)) for m in mask])
+        for e in range(env.num_envs):
+            flags = env._core.flags[e]
+            assert np.array_equal(mask[e], reference_mask(flags, n)), env.describe(e)
+            state = env.states[e].tobytes()
+            seen_modes.add(world.describe(state).split("mode=")[1].split()[0])
+            # Every masked action is a no-op, or a prompt cancelled back to normal.
+            for a in np.flatnonzero(mask[e] == 0):
+                after = world.describe(world.step(state, int(a)))
+                before = world.describe(state)
+                cancelled = before.replace(
+                    before.split("mode=")[1].split()[0], "normal", 1
+                )
+                assert after in (before, cancelled), (before, a, after)
+        _, _, _, _, info = env.step(acts)
+    assert {"normal", "choosing-tool"} <= seen_modes
+    assert any(m.startswith("choosing-direction") for m in seen_modes)
+
+
+def test_render_draws_the_agent_mark_in_its_cell():
+    env = gym.make("fulcrum/exp1-tree-v0", render_mode="rgb_array")
+    env.reset()
+    img = env.render()
+    assert img.shape == (8 * 16, 12 * 16, 3) and img.dtype == np.uint8
+    # The agent at (1,4): the middle of its tile is the agent's red mark; a floor
+    # tile's middle is floor.
+    assert img[4 * 16 + 8, 1 * 16 + 8].tolist() == [200, 40, 40]
+    assert img[1 * 16 + 8, 1 * 16 + 8].tolist() == [222, 222, 214]
+    vec = fulcrum.make_vec("exp1-tree", num_envs=2, render_mode="rgb_array")
+    frames = vec.render()
+    assert len(frames) == 2 and np.array_equal(frames[0], img)
+
+
+def test_single_env_refuses_to_step_an_ended_episode():
+    env = fulcrum.FulcrumEnv("exp1-tree")
+    env.reset()
+    for a in TO_THE_TREE:
+        _, r, term, _, _ = env.step(a)
+    assert term and r == 1.0
+    with pytest.raises(RuntimeError, match="call reset"):
+        env.step(N)
+
+
+def test_vector_env_through_gymnasium_make_vec():
+    env = gym.make_vec("fulcrum/room-v0", num_envs=4, vectorization_mode="vector_entry_point")
+    obs, _ = env.reset(seed=0)
+    assert obs["glyphs"].shape[0] == 4
+    env.step(env.action_space.sample())

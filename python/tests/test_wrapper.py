@@ -1,0 +1,119 @@
+"""EmpowermentReward: R + beta * b on the hand-checked path to the tree of exp1-tree."""
+
+import numpy as np
+import pytest
+import gymnasium as gym
+
+import fulcrum
+from fulcrum.wrappers import EmpowermentReward
+from test_env import TO_THE_TREE, W
+
+# E(s_{t+1}) along TO_THE_TREE, counted by hand (test_empowerment's trace, without
+# t = 0): axe -> tree, h_u 8 / h_e 3.
+E_NEXT = [0, 0, 0, 1, 0, 0, 0, 0, 1, 1, 1, 0]
+R = [0] * 11 + [1]
+BETA = 0.0009  # exp1-tree's [empowerment] beta
+
+
+def walk(env, actions, other=W):
+    out = []
+    for a in actions:
+        _, r, term, trunc, info = env.step(np.array([a, other]))
+        out.append(
+            (
+                float(r[0]),
+                float(info["intrinsic_reward"][0]),
+                float(info["empowerment"][0]),
+                bool(term[0]),
+            )
+        )
+    return out
+
+
+def test_additive_is_r_plus_beta_e():
+    env = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=2))
+    env.reset()
+    got = walk(env, TO_THE_TREE)
+    assert [g[2] for g in got] == E_NEXT
+    assert [g[1] for g in got] == pytest.approx([BETA * e for e in E_NEXT])
+    assert [g[0] for g in got] == pytest.approx([r + BETA * e for r, e in zip(R, E_NEXT)])
+    assert env.settings.startswith("additive: beta 0.0009, axe -> tree, h 8 unequipped / 3")
+    # The autoreset step pays nothing.
+    _, r, _, _, info = env.step(np.array([W, W]))
+    assert float(r[0]) == 0.0 and float(info["intrinsic_reward"][0]) == 0.0
+
+
+def test_potential_shaping_telescopes_by_hand():
+    g = 0.9
+    env = EmpowermentReward(
+        fulcrum.make_vec("exp1-tree", num_envs=2), form="potential", beta=1.0, gamma=g
+    )
+    env.reset()
+    got = walk(env, TO_THE_TREE)
+    phi = [0] + E_NEXT  # E(s_0) = 0
+    want = [g * phi[t + 1] - phi[t] for t in range(11)] + [-phi[11]]  # terminal: 0
+    assert [x[1] for x in got] == pytest.approx(want)
+
+
+def test_first_visit_pays_once_per_inventory():
+    env = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=2), form="first-visit")
+    env.reset()
+    got = walk(env, TO_THE_TREE)
+    # Without the axe, E > 0 first at t = 4; with it, at t = 9; nothing after.
+    want = [0, 0, 0, 0.1, 0, 0, 0, 0, 0.1, 0, 0, 0]
+    assert [x[1] for x in got] == pytest.approx(want)
+
+
+def test_count_pays_one_over_root_visits():
+    env = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=1), form="count", beta=1.0)
+    env.reset()
+    seq = [0, 2, 0, 2]  # N, S, N, S: (1,3), (1,4), (1,3), (1,4)
+    got = []
+    for a in seq:
+        _, _, _, _, info = env.step(np.array([a]))
+        got.append(float(info["intrinsic_reward"][0]))
+    assert got == pytest.approx([1.0, 1.0, 2**-0.5, 2**-0.5])
+
+
+def test_explicit_tool_objects_and_horizons():
+    # The wall with the pickaxe, one horizon everywhere: standing next to the wall
+    # holding the pickaxe, it can be dug within 3 steps.
+    env = EmpowermentReward(
+        fulcrum.make_vec("exp1-tree", num_envs=1),
+        tool="pickaxe",
+        objects=["wall"],
+        horizons=3,
+        beta=1.0,
+    )
+    assert "pickaxe -> wall, h 3 unequipped / 3 equipped" in env.settings
+    env.reset()
+    # (1,4) -> (4,6) picks up the pickaxe, then east to (8,6), next to the wall at (9,6).
+    path = [2, 2, 1, 1, 1, 1, 1, 1, 1]
+    for a in path:
+        _, r, _, _, info = env.step(np.array([a]))
+    assert env.unwrapped.describe(0).startswith("agent=8,6 holding=pickaxe")
+    assert float(info["empowerment"][0]) == 1.0 and float(r[0]) == 1.0
+
+
+def test_over_other_wrappers_the_reward_they_return_gets_the_bonus():
+    base = fulcrum.make_vec("exp1-tree", num_envs=2)
+    inner = gym.wrappers.vector.TransformReward(base, lambda r: 10 * r)
+    env = EmpowermentReward(inner)
+    env.reset()
+    got = walk(env, TO_THE_TREE)
+    assert got[-1][0] == pytest.approx(10.0 + 0.0)
+    assert got[8][0] == pytest.approx(BETA)
+
+
+def test_bad_settings_raise_value_error_with_the_cli_sentence():
+    env = fulcrum.make_vec("exp1-tree", num_envs=1)
+    with pytest.raises(ValueError, match="unknown intrinsic reward form 'additve'"):
+        EmpowermentReward(env, form="additve")
+    with pytest.raises(ValueError, match="unknown tool 'saw' in world 'exp1-tree'"):
+        EmpowermentReward(env, tool="saw")
+    with pytest.raises(ValueError, match="unknown object 'rock' in world 'exp1-tree'"):
+        EmpowermentReward(env, objects="rock")
+    with pytest.raises(ValueError, match="horizon 99 is too large"):
+        EmpowermentReward(env, horizons=(99, 3))
+    with pytest.raises(ValueError, match="wraps a fulcrum vector environment"):
+        EmpowermentReward(gym.make_vec("CartPole-v1", num_envs=1))

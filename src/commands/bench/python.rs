@@ -1,0 +1,79 @@
+//! The Python package's figures (`python -m fulcrum.bench`), when it is installed: a
+//! 64-world `make_vec` stepped from Python, the same through `EmpowermentReward`, and
+//! MiniGrid stepped the same way when `minigrid` is installed too.
+//!
+//! The interpreter is `$FULCRUM_PYTHON`, else `python3`. Without the package the suite
+//! says so on stderr and goes on: the figures are optional, the rest is not.
+
+use std::process::Command;
+
+use anyhow::{ensure, Context, Result};
+
+use super::Figure;
+
+/// Adds the Python figures to `figs`, or says why there are none.
+pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    let python = std::env::var("FULCRUM_PYTHON").unwrap_or_else(|_| "python3".into());
+    let found = Command::new(&python)
+        .args(["-c", "import fulcrum.bench"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !found {
+        eprintln!(
+            "fulcrum bench: no Python figures: '{python}' cannot import fulcrum (pip install ./python, or set FULCRUM_PYTHON to an interpreter that can)"
+        );
+        return Ok(());
+    }
+    let mut cmd = Command::new(&python);
+    cmd.args(["-m", "fulcrum.bench", "--json"]);
+    if quick {
+        cmd.arg("--quick");
+    }
+    let out = cmd
+        .output()
+        .with_context(|| format!("cannot run {python} -m fulcrum.bench"))?;
+    ensure!(
+        out.status.success(),
+        "{python} -m fulcrum.bench failed: {}",
+        String::from_utf8_lossy(&out.stderr).trim()
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout)
+        .with_context(|| format!("{python} -m fulcrum.bench printed no JSON"))?;
+    let get = |k: &str| v[k].as_f64();
+    let n = get("num_envs").unwrap_or(0.0);
+    let (Some(plain), Some(wrapped), Some(over)) = (
+        get("make_vec_steps_per_s"),
+        get("wrapped_steps_per_s"),
+        get("wrapper_overhead_percent"),
+    ) else {
+        anyhow::bail!("{python} -m fulcrum.bench: figures missing in {v}");
+    };
+    figs.push(Figure {
+        zero_ok: false,
+        name: "python make_vec env steps/s".into(),
+        value: plain,
+        unit: "steps/s",
+        note: format!(
+            "(exp1-tree x {n}, random actions, stepped from Python, one core; goal >= 2M)"
+        ),
+    });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "python make_vec + EmpowermentReward".into(),
+        value: wrapped,
+        unit: "steps/s",
+        note: format!("(the same with the additive bonus: +{over:.1}% per step; goal < 10%)"),
+    });
+    if let (Some(mg), Some(ratio)) = (get("minigrid_steps_per_s"), get("ratio_to_minigrid")) {
+        figs.push(Figure {
+            zero_ok: false,
+            name: "python MiniGrid DoorKey-5x5 env steps/s".into(),
+            value: mg,
+            unit: "steps/s",
+            note: format!(
+                "(x {n}, gymnasium sync vector env, stepped the same way; fulcrum x{ratio:.0})"
+            ),
+        });
+    }
+    Ok(())
+}
