@@ -17,8 +17,16 @@ updates, as `fulcrum experiment` pools it) first reached 0.9, the env steps per
 second of the whole loop (stepping, inference and updates), and the samples x epochs
 per second of the PPO updates alone (fulcrum's "learner samples x epochs/s").
 
-Measured (BENCHMARKS.md, "Python"): see there for the figures of one run beside
-`fulcrum train` on the same machine.
+It should end like this (seed 1, on the 2-core machine of BENCHMARKS.md, 2026-11-30,
+PyTorch 2.15 on the CPU):
+
+    update 480/488  steps 491520  success 0.999  7159 steps/s
+    update 488/488  steps 499712  success 0.999  7171 steps/s
+    done: 499712 env steps in 69.7 s (7171 steps/s); success 0.9 first at 107520 env steps; PPO updates 48815 samples x epochs/s
+
+Seeds 1 to 3 reached 0.9 at 107,520, 119,808 and 102,400 env steps, where `fulcrum
+train` with the same settings did at 82,944, 113,664 and 96,256, 12 to 16 times faster
+(BENCHMARKS.md, "Python"). It is not run in CI (PyTorch is a large download).
 """
 
 import argparse
