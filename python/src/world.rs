@@ -9,7 +9,7 @@ use std::sync::{Arc, OnceLock};
 
 use fulcrum_empowerment::{request, Engine};
 use fulcrum_shared::msg::STATE_BYTES;
-use fulcrum_shared::{builtin, load_world, parse_world, State, Task, World};
+use fulcrum_shared::{builtin, load_world, parse_world, State, World};
 use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyString};
@@ -196,18 +196,7 @@ impl PyWorld {
     /// The task, in words.
     #[getter]
     fn task(&self) -> String {
-        let w = &self.world;
-        match &w.task {
-            Task::None => "none".into(),
-            Task::Destroy(list) => format!(
-                "destroy {}",
-                list.iter()
-                    .map(|&i| w.objects[i].name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
-            Task::Push(b) => format!("push {} onto a goal", w.objects[*b].name),
-        }
+        self.world.task_text()
     }
 
     /// The `[empowerment]` defaults: tool, objects, horizons and beta.

@@ -4,7 +4,7 @@
 use std::fmt::Write as _;
 
 use crate::state::{Mode, State, BOULDER_DESTROYED};
-use crate::world::{cond_from_name, cond_name, ObjectKind, Terrain, World, INTACT};
+use crate::world::{cond_from_name, cond_name, ObjectKind, Task, Terrain, World, INTACT};
 
 /// Why a state description was refused.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -45,6 +45,21 @@ impl World {
             }
         }
         out
+    }
+
+    /// The task in words: `none`, `destroy tree, wall`, `push boulder onto a goal`.
+    pub fn task_text(&self) -> String {
+        match &self.task {
+            Task::None => "none".to_string(),
+            Task::Destroy(v) => format!(
+                "destroy {}",
+                v.iter()
+                    .map(|&i| self.objects[i].name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+            Task::Push(b) => format!("push {} onto a goal", self.objects[*b].name),
+        }
     }
 
     /// Parse a state description (`docs/world.md`, "The state"). Objects not named keep their initial

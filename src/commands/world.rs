@@ -4,7 +4,7 @@ use std::time::Instant;
 
 use anyhow::{Context, Result};
 use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{parse_world, ObjectSet, Task, ToolChoice, World};
+use fulcrum_shared::{parse_world, ObjectSet, ToolChoice};
 use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
@@ -17,20 +17,6 @@ pub fn run(cmd: WorldCmd) -> Result<()> {
     match cmd {
         WorldCmd::Show { world: name, json } => show(&name, json),
         WorldCmd::Generate(a) => gen(&a),
-    }
-}
-
-fn task_text(w: &World) -> String {
-    match &w.task {
-        Task::None => "none".to_string(),
-        Task::Destroy(v) => format!(
-            "destroy {}",
-            v.iter()
-                .map(|&i| w.objects[i].name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-        Task::Push(b) => format!("push {} onto a goal", w.objects[*b].name),
     }
 }
 
@@ -62,7 +48,7 @@ fn show(name: &str, as_json: bool) -> Result<()> {
             "tools": w.tools.iter().map(|t| json!({"name": t.name, "kind": t.kind, "letter": t.letter.to_string(), "x": t.pos.0, "y": t.pos.1})).collect::<Vec<_>>(),
             "objects": w.objects.iter().map(|o| json!({"name": o.name, "kind": o.kind.name(), "x": o.pos.0, "y": o.pos.1})).collect::<Vec<_>>(),
             "actions": actions,
-            "task": task_text(&w),
+            "task": w.task_text(),
             "empowerment": {"tool": tool, "objects": objects, "horizon_unequipped": emp.horizon_unequipped, "horizon_equipped": emp.horizon_equipped, "beta": emp.beta},
             "states": e.space.len(),
             "normal_states": e.normal_states(),
@@ -107,7 +93,7 @@ fn show(name: &str, as_json: bool) -> Result<()> {
         actions.join(" "),
         actions.len()
     );
-    println!("task         {}", task_text(&w));
+    println!("task         {}", w.task_text());
     println!(
         "empowerment  tool {tool}, objects {}, h = {} unequipped / {} equipped, beta {}",
         objects.unwrap_or_else(|| "none".into()),
