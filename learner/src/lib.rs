@@ -49,6 +49,8 @@ pub mod process;
 pub mod running_std;
 /// The compiled variants of the inner loops (baseline, AVX2, AVX-512).
 pub mod simd;
+/// TensorBoard event files beside `metrics.csv` (`RUN/tb/`).
+pub mod tensorboard;
 /// No silent hang and no divergence spread: the finite-weight check, the local
 /// actors' deadline in synchronous mode, the notices to the supervisor.
 pub mod watch;

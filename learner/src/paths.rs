@@ -22,6 +22,10 @@ impl RunPaths {
     pub fn checkpoint(&self) -> PathBuf {
         self.dir.join("checkpoints").join("latest.safetensors")
     }
+    /// `tb/`: TensorBoard event files.
+    pub fn tb(&self) -> PathBuf {
+        self.dir.join("tb")
+    }
     /// `plots/`.
     pub fn plots(&self) -> PathBuf {
         self.dir.join("plots")

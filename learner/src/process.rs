@@ -203,6 +203,9 @@ struct Learner<'a> {
     layout: ChunkLayout,
     ports: Ports,
     metrics: std::fs::File,
+    /// TensorBoard's view of the rows (None once writing it failed: `metrics.csv`
+    /// stays the record, and the events are rebuilt from it on `--resume`).
+    tb: Option<crate::tensorboard::EventWriter>,
     hosts: Option<HostsLog>,
     /// Remote actors seen, and whether the learner waits for them (a stalled one is
     /// live again with its next chunk).
@@ -281,6 +284,7 @@ impl<'a> Learner<'a> {
         let ports = Ports::open(namespace, net.len())?;
         ports.publish(&net, run, world_hash, ctr.update)?;
         let metrics = open_metrics(&paths.metrics())?;
+        let tb = open_events(paths, ctr.wall_s);
         let hosts = if cfg.remote {
             Some(HostsLog::open(paths)?)
         } else {
@@ -302,6 +306,7 @@ impl<'a> Learner<'a> {
             layout,
             ports,
             metrics,
+            tb,
             hosts,
             roster: BTreeMap::new(),
             last_seq: BTreeMap::new(),
@@ -681,6 +686,15 @@ impl<'a> Learner<'a> {
         };
         self.last = now;
         append_row(&mut self.metrics, &self.paths.metrics(), &row)?;
+        if let Some(tb) = self.tb.as_mut() {
+            if let Err(e) = tb.append(&row) {
+                tracing::warn!(
+                    "TensorBoard events stop here ({}: {e}); metrics.csv goes on, and --resume writes them again",
+                    tb.path().display()
+                );
+                self.tb = None;
+            }
+        }
         if let Some(log) = self.hosts.as_mut() {
             let per_chunk = (self.layout.envs * self.layout.steps) as u64;
             log.append(self.paths, self.ctr.update, chunks, per_chunk, &self.roster)?;
@@ -726,5 +740,22 @@ impl<'a> Learner<'a> {
         }
         checkpoint::save(&path, &self.net, &self.adam, &extra)?;
         Ok(())
+    }
+}
+
+/// The run's TensorBoard events, rewritten from the rows `metrics.csv` holds; None (with
+/// a warning) when they cannot be written: they are a view, not the record.
+fn open_events(paths: &RunPaths, wall_s: f64) -> Option<crate::tensorboard::EventWriter> {
+    let config = std::fs::read_to_string(paths.config()).unwrap_or_default();
+    let rows = crate::metrics::read_metrics(&paths.metrics()).unwrap_or_default();
+    match crate::tensorboard::EventWriter::create(&paths.tb(), &config, &rows, wall_s) {
+        Ok(w) => Some(w),
+        Err(e) => {
+            tracing::warn!(
+                "no TensorBoard events for this run ({}: {e}); metrics.csv is written as usual",
+                paths.tb().display()
+            );
+            None
+        }
     }
 }
