@@ -451,10 +451,12 @@ pub struct TrainArgs {
     /// listen for zenoh peers on ADDR (`host:port` or a zenoh locator such as
     /// `tcp/0.0.0.0:7447`). Needs the `multihost` feature.
     #[arg(long, value_name = "ADDR")]
+    #[cfg_attr(not(feature = "multihost"), arg(hide = true))]
     pub listen: Option<String>,
     /// With --listen: seconds the learner waits for a remote actor's chunk before it
     /// goes on without it [default: 10].
     #[arg(long, value_name = "SECS")]
+    #[cfg_attr(not(feature = "multihost"), arg(hide = true))]
     pub stall_timeout: Option<f64>,
     #[command(flatten)]
     pub zenoh: ZenohArgs,
@@ -466,10 +468,12 @@ pub struct ZenohArgs {
     /// Seconds without a word from the other host before its session is closed (zenoh's
     /// link lease); a host whose session closed reconnects by itself.
     #[arg(long, value_name = "SECS", default_value_t = 10.0)]
+    #[cfg_attr(not(feature = "multihost"), arg(hide = true))]
     pub session_timeout: f64,
     /// A zenoh configuration file (JSON5) to start from; fulcrum sets mode, endpoints
     /// and lease on top of it.
     #[arg(long, value_name = "FILE")]
+    #[cfg_attr(not(feature = "multihost"), arg(hide = true))]
     pub zenoh_config: Option<PathBuf>,
 }
 

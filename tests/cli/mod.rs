@@ -558,6 +558,31 @@ fn multihost_commands_say_which_build_they_need() {
     }
 }
 
+/// `train --help` lists the flags between hosts only in a build that has them.
+#[test]
+fn train_help_lists_the_multihost_flags_only_where_they_work() {
+    let out = fulcrum(&["train", "--help"]);
+    assert!(out.status.success());
+    let help = String::from_utf8_lossy(&out.stdout);
+    for flag in [
+        "--listen",
+        "--stall-timeout",
+        "--session-timeout",
+        "--zenoh-config",
+    ] {
+        assert_eq!(
+            help.contains(flag),
+            cfg!(feature = "multihost"),
+            "{flag} in:\n{help}"
+        );
+    }
+    // The rest is there either way.
+    assert!(
+        help.contains("--steps") && help.contains("--resume"),
+        "{help}"
+    );
+}
+
 #[test]
 fn a_stall_timeout_without_listen_is_refused() {
     let out = fulcrum(&["train", "room", "--stall-timeout", "5"]);
