@@ -575,6 +575,10 @@ pub struct RecordArgs {
     /// Seed of the action sampling [default: the run's seed].
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Also write each episode as an animated GIF (`episode-<k>.gif`, one frame per
+    /// step, looping).
+    #[arg(long)]
+    pub gif: bool,
 }
 
 /// `fulcrum experiment`

@@ -77,67 +77,154 @@ pub fn episode_png(path: &Path, s: &Strip) -> Result<(), PlotError> {
         HAlign::Center,
         VAlign::Middle,
     ))];
-    let rect =
-        |x: f64, y: f64, w: f64, h: f64| vec![(x, y), (x + w, y), (x + w, y + h), (x, y + h)];
     for (k, f) in s.frames.iter().enumerate() {
         let x0 = GAP + (k % cols) as f64 * (fw + GAP);
         let y0 = top + (k / cols) as f64 * (fh + GAP);
-        shapes.push(Shape::Text(
-            Label::new(
-                f.caption.clone(),
-                x0 + fw / 2.0,
-                y0 + CAPTION / 2.0,
-                fit_size(font, &f.caption, 11.0, 6.0, fw),
+        frame_shapes(font, s, f, (x0, y0), max, &mut shapes);
+    }
+    scene::png(path, width.ceil() as u32, height.ceil() as u32, &shapes)
+}
+
+/// Frame delay of the animation, in hundredths of a second.
+const GIF_DELAY: u16 = 25;
+
+/// Draws the episode as an animated GIF at `path` (written atomically): one frame per
+/// step, each as a frame of the strip (cells coloured by E, the glyphs, the caption)
+/// under a line with the world and the step; it loops.
+pub fn episode_gif(path: &Path, s: &Strip) -> Result<(), PlotError> {
+    if s.frames.is_empty() || s.width == 0 || s.height == 0 {
+        return Err(PlotError::NoData {
+            path: path.to_path_buf(),
+            reason: "the episode has no frames",
+        });
+    }
+    let font = fonts(path)?;
+    let (fw, fh) = (s.width as f64 * CELL, s.height as f64 * CELL + CAPTION);
+    let width = (fw + 2.0 * GAP).max(160.0);
+    let top = 22.0;
+    let height = top + fh + GAP;
+    if width > 4000.0 || height > 4000.0 {
+        return Err(PlotError::TooLarge {
+            path: path.to_path_buf(),
+            what: "the frame side (pixels)",
+            size: width.max(height) as usize,
+            limit: 4000,
+        });
+    }
+    let max = s
+        .frames
+        .iter()
+        .flat_map(|f| f.values.iter().flatten())
+        .copied()
+        .filter(|v| v.is_finite())
+        .fold(0.0, f64::max);
+    let (w, h) = (width.ceil() as u16, height.ceil() as u16);
+    let encode = |error| PlotError::EncodeGif {
+        path: path.to_path_buf(),
+        error,
+    };
+    let mut bytes = Vec::new();
+    {
+        let mut enc = gif::Encoder::new(&mut bytes, w, h, &[]).map_err(encode)?;
+        enc.set_repeat(gif::Repeat::Infinite).map_err(encode)?;
+        for (k, f) in s.frames.iter().enumerate() {
+            let title = format!("{} {}/{}", s.title_short(), k + 1, s.frames.len());
+            let mut shapes = vec![Shape::Text(Label::new(
+                title.clone(),
+                width / 2.0,
+                top / 2.0,
+                fit_size(font, &title, 12.0, 6.0, width - 8.0),
                 HAlign::Center,
                 VAlign::Middle,
-            )
-            .color(AXIS),
-        ));
-        for cy in 0..s.height {
-            for cx in 0..s.width {
-                let c = cy * s.width + cx;
-                let g = f.glyphs.get(c).copied().unwrap_or(' ');
-                let v = f.values.get(c).copied().flatten().filter(|v| v.is_finite());
-                let bg = match (g, v) {
-                    ('#', _) => ROCK,
-                    (_, Some(v)) => viridis(if max > 0.0 { v / max } else { 0.0 }),
-                    _ => [200, 200, 200],
-                };
-                let (px, py) = (x0 + cx as f64 * CELL, y0 + CAPTION + cy as f64 * CELL);
-                shapes.push(Shape::Fill(rect(px, py, CELL, CELL), bg, 1.0));
-                if g == '@' {
-                    let r = CELL * 0.45;
-                    let (mx, my) = (px + CELL / 2.0, py + CELL / 2.0);
-                    let disc: Vec<(f64, f64)> = (0..12)
-                        .map(|i| {
-                            let a = i as f64 * std::f64::consts::TAU / 12.0;
-                            (mx + r * a.cos(), my + r * a.sin())
-                        })
-                        .collect();
-                    shapes.push(Shape::Fill(disc, [255, 255, 255], 1.0));
-                    shapes.push(Shape::Text(Label::new(
-                        "@",
-                        mx,
-                        my,
+            ))];
+            frame_shapes(font, s, f, ((width - fw) / 2.0, top), max, &mut shapes);
+            let rgb = scene::rasterize(path, w as u32, h as u32, &shapes)?;
+            let mut frame = gif::Frame::from_rgb_speed(w, h, &rgb, 10);
+            frame.delay = GIF_DELAY;
+            enc.write_frame(&frame).map_err(encode)?;
+        }
+    }
+    fulcrum_shared::fsio::write_atomic(path, &bytes).map_err(|error| PlotError::Io {
+        path: path.to_path_buf(),
+        error,
+    })
+}
+
+impl Strip {
+    /// The title's first clause (up to the first comma): a GIF frame's heading.
+    fn title_short(&self) -> &str {
+        self.title.split(',').next().unwrap_or(&self.title)
+    }
+}
+
+/// The shapes of one frame with its top-left corner at `(x0, y0)`: the caption, then
+/// each cell coloured by E (viridis up to `max`), its glyph on top, the agent as '@' on a
+/// white disc.
+fn frame_shapes(
+    font: &ab_glyph::FontRef<'static>,
+    s: &Strip,
+    f: &Frame,
+    (x0, y0): (f64, f64),
+    max: f64,
+    shapes: &mut Vec<Shape>,
+) {
+    let fw = s.width as f64 * CELL;
+    let rect =
+        |x: f64, y: f64, w: f64, h: f64| vec![(x, y), (x + w, y), (x + w, y + h), (x, y + h)];
+    shapes.push(Shape::Text(
+        Label::new(
+            f.caption.clone(),
+            x0 + fw / 2.0,
+            y0 + CAPTION / 2.0,
+            fit_size(font, &f.caption, 11.0, 6.0, fw),
+            HAlign::Center,
+            VAlign::Middle,
+        )
+        .color(AXIS),
+    ));
+    for cy in 0..s.height {
+        for cx in 0..s.width {
+            let c = cy * s.width + cx;
+            let g = f.glyphs.get(c).copied().unwrap_or(' ');
+            let v = f.values.get(c).copied().flatten().filter(|v| v.is_finite());
+            let bg = match (g, v) {
+                ('#', _) => ROCK,
+                (_, Some(v)) => viridis(if max > 0.0 { v / max } else { 0.0 }),
+                _ => [200, 200, 200],
+            };
+            let (px, py) = (x0 + cx as f64 * CELL, y0 + CAPTION + cy as f64 * CELL);
+            shapes.push(Shape::Fill(rect(px, py, CELL, CELL), bg, 1.0));
+            if g == '@' {
+                let r = CELL * 0.45;
+                let (mx, my) = (px + CELL / 2.0, py + CELL / 2.0);
+                let disc: Vec<(f64, f64)> = (0..12)
+                    .map(|i| {
+                        let a = i as f64 * std::f64::consts::TAU / 12.0;
+                        (mx + r * a.cos(), my + r * a.sin())
+                    })
+                    .collect();
+                shapes.push(Shape::Fill(disc, [255, 255, 255], 1.0));
+                shapes.push(Shape::Text(Label::new(
+                    "@",
+                    mx,
+                    my,
+                    10.0,
+                    HAlign::Center,
+                    VAlign::Middle,
+                )));
+            } else if g != '.' && g != '#' {
+                shapes.push(Shape::Text(
+                    Label::new(
+                        g.to_string(),
+                        px + CELL / 2.0,
+                        py + CELL / 2.0,
                         10.0,
                         HAlign::Center,
                         VAlign::Middle,
-                    )));
-                } else if g != '.' && g != '#' {
-                    shapes.push(Shape::Text(
-                        Label::new(
-                            g.to_string(),
-                            px + CELL / 2.0,
-                            py + CELL / 2.0,
-                            10.0,
-                            HAlign::Center,
-                            VAlign::Middle,
-                        )
-                        .color(text_on(bg)),
-                    ));
-                }
+                    )
+                    .color(text_on(bg)),
+                ));
             }
         }
     }
-    scene::png(path, width.ceil() as u32, height.ceil() as u32, &shapes)
 }

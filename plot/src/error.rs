@@ -51,6 +51,14 @@ pub enum PlotError {
         /// The encoder's error.
         error: png::EncodingError,
     },
+    /// GIF encoding failed.
+    #[error("encoding {} as GIF failed: {error}", path.display())]
+    EncodeGif {
+        /// The animation that was being encoded.
+        path: PathBuf,
+        /// The encoder's error.
+        error: gif::EncodingError,
+    },
     /// Writing the file failed (the temporary file has been removed).
     #[error("cannot write {}: {error}", path.display())]
     Io {

@@ -52,7 +52,7 @@ pub mod trace;
 
 pub use bands::{band_chart_png, band_chart_svg, Band, BandChart};
 pub use curve::{learning_curve_png, CurvePoint};
-pub use episode::{episode_png, Frame, Strip};
+pub use episode::{episode_gif, episode_png, Frame, Strip};
 pub use error::PlotError;
 pub use heatmap::{heatmap_png, Heatmap};
 pub use matrix::{matrix_png, MatrixPicture};

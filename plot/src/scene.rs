@@ -24,6 +24,18 @@ pub(crate) enum Shape {
 
 /// Renders `shapes` on a white `width` x `height` picture and writes it as a PNG.
 pub(crate) fn png(path: &Path, width: u32, height: u32, shapes: &[Shape]) -> Result<(), PlotError> {
+    let buf = rasterize(path, width, height, shapes)?;
+    save_png(path, &buf, width, height)
+}
+
+/// Renders `shapes` on a white `width` x `height` picture: RGB bytes, row-major
+/// (`path` names the picture in errors).
+pub(crate) fn rasterize(
+    path: &Path,
+    width: u32,
+    height: u32,
+    shapes: &[Shape],
+) -> Result<Vec<u8>, PlotError> {
     let font = crate::text::fonts(path)?;
     let mut buf = vec![255u8; width as usize * height as usize * 3];
     {
@@ -63,7 +75,7 @@ pub(crate) fn png(path: &Path, width: u32, height: u32, shapes: &[Shape]) -> Res
             canvas.text(font, l);
         }
     }
-    save_png(path, &buf, width, height)
+    Ok(buf)
 }
 
 fn hex(c: Rgb) -> String {

@@ -23,7 +23,8 @@ use crate::error::bad;
 use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 
 /// Plays `episodes` episodes of the run's policy and draws each as
-/// `out/episode-<k>.png`; returns the paths.
+/// `out/episode-<k>.png` (and, with `gif`, as the animation `out/episode-<k>.gif`, one
+/// frame per step); returns each file with the steps of its episode.
 pub fn record(
     paths: &RunPaths,
     cfg: &RunConfig,
@@ -31,7 +32,8 @@ pub fn record(
     episodes: usize,
     seed: u64,
     out: &Path,
-) -> Result<Vec<PathBuf>> {
+    gif: bool,
+) -> Result<Vec<(PathBuf, u32)>> {
     let ckpt = paths.checkpoint();
     if !ckpt.exists() {
         return bad(format!(
@@ -107,7 +109,13 @@ pub fn record(
                 let path = out.join(format!("episode-{k}.png"));
                 fulcrum_plot::episode_png(&path, &strip)
                     .with_context(|| format!("cannot draw {}", path.display()))?;
-                written.push(path);
+                written.push((path, ep.t));
+                if gif {
+                    let path = out.join(format!("episode-{k}.gif"));
+                    fulcrum_plot::episode_gif(&path, &strip)
+                        .with_context(|| format!("cannot draw {}", path.display()))?;
+                    written.push((path, ep.t));
+                }
                 break;
             }
         }

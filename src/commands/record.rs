@@ -1,5 +1,6 @@
 //! `fulcrum record RUN`, and `fulcrum train --record N`: episodes of a run's policy as
-//! strips of frames, so a person can see what the agent does.
+//! strips of frames (and, with `--gif`, animations), so a person can see what the agent
+//! does.
 //!
 //! The run's checkpoint gives the policy (the weights of its last update); episodes are
 //! played from the world's initial state with actions sampled from the policy, as the
@@ -32,15 +33,16 @@ pub fn run(a: &RecordArgs) -> Result<()> {
         return bad(format!("--episodes {} must be 1 to 100", a.episodes));
     }
     let out = a.out.clone().unwrap_or_else(|| paths.dir.join("episodes"));
-    for p in record(
+    for (p, steps) in record(
         &paths,
         &cfg,
         &w,
         a.episodes,
         a.seed.unwrap_or(cfg.seed),
         &out,
+        a.gif,
     )? {
-        println!("{}", p.display());
+        println!("{}  ({steps} steps)", p.display());
     }
     Ok(())
 }

@@ -100,7 +100,8 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             }
             if let Some(n) = a.record.filter(|&n| n > 0) {
                 let out = paths.dir.join("episodes");
-                let files = fulcrum_run::record::record(&paths, &cfg, &w, n, cfg.seed, &out)?;
+                let files =
+                    fulcrum_run::record::record(&paths, &cfg, &w, n, cfg.seed, &out, false)?;
                 println!(
                     "{} episodes of the final policy: {}",
                     files.len(),

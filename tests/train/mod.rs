@@ -702,6 +702,51 @@ fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
     }
     assert!(!dir.join("episodes/episode-3.png").exists());
+
+    // `record --gif`: the same episodes as animations, one frame per state (the start
+    // and one after each step), every frame the size of the first.
+    let gifs = dir.join("gifs");
+    let out = crate::util::fulcrum()
+        .args(["record", d, "--episodes", "2", "--gif", "--seed", "5"])
+        .arg("--out")
+        .arg(&gifs)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines.len(), 4, "{text}");
+    for k in 1..=2 {
+        let line = lines
+            .iter()
+            .find(|l| l.contains(&format!("episode-{k}.gif")))
+            .unwrap_or_else(|| panic!("no episode-{k}.gif in {text}"));
+        let steps: usize = line
+            .split('(')
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("no step count in {line}"));
+        assert!((1..=50).contains(&steps), "{line}");
+        let file = std::fs::File::open(gifs.join(format!("episode-{k}.gif"))).unwrap();
+        let mut opts = gif::DecodeOptions::new();
+        opts.set_color_output(gif::ColorOutput::RGBA);
+        let mut dec = opts.read_info(file).unwrap();
+        // room is 7 x 5 cells of 14 pixels; the frame adds 8 pixels each side (at least
+        // 160 wide), and 22 + 16 + 8 pixels of heading, caption and margin.
+        assert_eq!((dec.width(), dec.height()), (160, 22 + 5 * 14 + 16 + 8));
+        let mut frames = 0;
+        while let Some(f) = dec.read_next_frame().unwrap() {
+            assert_eq!((f.width, f.height), (160, 116));
+            assert_eq!(f.delay, 25);
+            frames += 1;
+        }
+        assert_eq!(frames, steps + 1, "{line}");
+    }
     let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
     assert!(cfg.contains("horizon_unequipped = 5\n"), "{cfg}");
     assert!(cfg.contains("horizon_equipped = 5\n"), "{cfg}");
