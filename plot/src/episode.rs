@@ -54,21 +54,8 @@ pub fn episode_png(path: &Path, s: &Strip) -> Result<(), PlotError> {
     let top = 40.0;
     let width = (GAP + cols as f64 * (fw + GAP)).max(320.0);
     let height = top + rows as f64 * (fh + GAP) + GAP;
-    if width > 8000.0 || height > 8000.0 {
-        return Err(PlotError::TooLarge {
-            path: path.to_path_buf(),
-            what: "the picture side (pixels)",
-            size: width.max(height) as usize,
-            limit: 8000,
-        });
-    }
-    let max = s
-        .frames
-        .iter()
-        .flat_map(|f| f.values.iter().flatten())
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
+    check_side(path, "the picture side (pixels)", width.max(height), 8000)?;
+    let max = s.max_value();
     let mut shapes = vec![Shape::Text(Label::new(
         s.title.clone(),
         width / 2.0,
@@ -103,21 +90,8 @@ pub fn episode_gif(path: &Path, s: &Strip) -> Result<(), PlotError> {
     let width = (fw + 2.0 * GAP).max(160.0);
     let top = 22.0;
     let height = top + fh + GAP;
-    if width > 4000.0 || height > 4000.0 {
-        return Err(PlotError::TooLarge {
-            path: path.to_path_buf(),
-            what: "the frame side (pixels)",
-            size: width.max(height) as usize,
-            limit: 4000,
-        });
-    }
-    let max = s
-        .frames
-        .iter()
-        .flat_map(|f| f.values.iter().flatten())
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
+    check_side(path, "the frame side (pixels)", width.max(height), 4000)?;
+    let max = s.max_value();
     let (w, h) = (width.ceil() as u16, height.ceil() as u16);
     let encode = |error| PlotError::EncodeGif {
         path: path.to_path_buf(),
@@ -150,7 +124,31 @@ pub fn episode_gif(path: &Path, s: &Strip) -> Result<(), PlotError> {
     })
 }
 
+/// Refuses a picture side over `limit` pixels.
+fn check_side(path: &Path, what: &'static str, side: f64, limit: usize) -> Result<(), PlotError> {
+    if side > limit as f64 {
+        return Err(PlotError::TooLarge {
+            path: path.to_path_buf(),
+            what,
+            size: side as usize,
+            limit,
+        });
+    }
+    Ok(())
+}
+
 impl Strip {
+    /// The largest finite value of any frame (0 when there is none): the top of the
+    /// colour scale.
+    fn max_value(&self) -> f64 {
+        self.frames
+            .iter()
+            .flat_map(|f| f.values.iter().flatten())
+            .copied()
+            .filter(|v| v.is_finite())
+            .fold(0.0, f64::max)
+    }
+
     /// The title's first clause (up to the first comma): a GIF frame's heading.
     fn title_short(&self) -> &str {
         self.title.split(',').next().unwrap_or(&self.title)
