@@ -39,6 +39,10 @@ pub enum Command {
     /// Episodes of a run's policy as strips of frames (PNG): where the agent goes and
     /// where the empowerment bonus is.
     Record(RecordArgs),
+    /// Play a run's policy for N episodes (greedy or sampled, on its world or another of
+    /// the same shape): success, return, length and tool use with 95% intervals, appended
+    /// to RUN/eval.csv.
+    Eval(EvalArgs),
     /// The throughput suite: timings with the machine they ran on.
     Bench(BenchArgs),
     /// Actors on this host for a run whose learner is on another host (`train
@@ -579,6 +583,32 @@ pub struct RecordArgs {
     /// step, looping).
     #[arg(long)]
     pub gif: bool,
+}
+
+/// `fulcrum eval`
+#[derive(Debug, Args)]
+pub struct EvalArgs {
+    /// A run directory (with its checkpoint).
+    pub run: PathBuf,
+    /// Episodes to play (1 to 100000).
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// The most probable allowed action at each step (the default).
+    #[arg(long, conflicts_with = "sample")]
+    pub greedy: bool,
+    /// Sample actions from the policy, as the actors do.
+    #[arg(long)]
+    pub sample: bool,
+    /// Seed of the sampling [default: the run's seed].
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Play on this world (a file or a built-in name) instead of the run's: one of the
+    /// same size and tool count.
+    #[arg(long)]
+    pub world: Option<String>,
+    /// A checkpoint file [default: RUN/checkpoints/latest.safetensors].
+    #[arg(long)]
+    pub checkpoint: Option<PathBuf>,
 }
 
 /// `fulcrum experiment`

@@ -163,6 +163,24 @@ impl Policy {
         }
     }
 
+    /// The most probable allowed action of one observation (ties to the lower index):
+    /// the greedy policy of evaluation.
+    pub fn greedy(&mut self, glyphs: &[u8], flags: &[u8]) -> u8 {
+        self.eval(glyphs, flags);
+        let mask = if self.masked {
+            fulcrum_shared::mask::action_mask(flags)
+        } else {
+            u32::MAX
+        };
+        let mut best: Option<(usize, f32)> = None;
+        for (k, &l) in self.logits.iter().enumerate() {
+            if mask >> k & 1 == 1 && best.is_none_or(|(_, b)| l > b) {
+                best = Some((k, l));
+            }
+        }
+        best.map_or(0, |(k, _)| k as u8)
+    }
+
     /// Sample an action for each of the `actions.len()` observations: log pi(a) and V.
     pub fn act(
         &mut self,

@@ -19,6 +19,7 @@
 //! | [`watchdog`] | ending a run that makes no update for too long, naming who stalled |
 //! | [`progress`] | a bar on a terminal, a line now and then elsewhere |
 //! | [`curve`] | the learning curve drawn when a run ends |
+//! | [`eval`] | a run's policy played greedily or sampled: success, return, length, tool use with 95% intervals |
 //! | [`record`] | episodes of a run's policy as strips of frames |
 //! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
 //! | [`stats`] | curves over seeds, censored times to solve, tests |
@@ -27,6 +28,7 @@
 pub mod child;
 pub mod curve;
 pub mod error;
+pub mod eval;
 pub mod experiment;
 pub mod lock;
 pub mod plan;

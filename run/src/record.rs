@@ -34,27 +34,7 @@ pub fn record(
     out: &Path,
     gif: bool,
 ) -> Result<Vec<(PathBuf, u32)>> {
-    let ckpt = paths.checkpoint();
-    if !ckpt.exists() {
-        return bad(format!(
-            "{}: no checkpoint yet, so no policy to record",
-            paths.dir.display()
-        ));
-    }
-    let shape = cfg.shape(w);
-    // The weights, checked against the layout, in the layout's order: the flat vector
-    // the policy takes.
-    let contents = checkpoint::read(&ckpt, &shape.params())?;
-    let flat: Vec<f32> = contents
-        .params
-        .into_iter()
-        .flat_map(|p| p.weights)
-        .collect();
-    let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
-    anyhow::ensure!(
-        policy.set(&flat),
-        "the checkpoint's weights do not fit the network"
-    );
+    let mut policy = load_policy(&paths.checkpoint(), paths, cfg, w)?;
 
     // E for every state, by the run's channel.
     let e = engine(w)?;
@@ -146,4 +126,30 @@ fn frame(
         glyphs,
         values,
     }
+}
+
+/// The policy of a checkpoint (the run's latest unless `ckpt` names another), its weights
+/// checked against the network the run's configuration and `w` give.
+pub fn load_policy(ckpt: &Path, paths: &RunPaths, cfg: &RunConfig, w: &World) -> Result<Policy> {
+    if !ckpt.exists() {
+        return bad(format!(
+            "{}: no checkpoint yet, so no policy to play",
+            paths.dir.display()
+        ));
+    }
+    let shape = cfg.shape(w);
+    // The weights, checked against the layout, in the layout's order: the flat vector
+    // the policy takes.
+    let contents = checkpoint::read(ckpt, &shape.params())?;
+    let flat: Vec<f32> = contents
+        .params
+        .into_iter()
+        .flat_map(|p| p.weights)
+        .collect();
+    let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
+    anyhow::ensure!(
+        policy.set(&flat),
+        "the checkpoint's weights do not fit the network"
+    );
+    Ok(policy)
 }

@@ -12,6 +12,7 @@ pub mod bench;
 #[cfg(feature = "multihost")]
 pub mod bridge;
 pub mod empowerment;
+pub mod eval;
 pub mod experiment;
 pub mod record;
 pub mod serve;
@@ -32,6 +33,7 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         Command::Train(a) => train::run(&a),
         Command::Experiment(a) => experiment::run(&a),
         Command::Record(a) => record::run(&a),
+        Command::Eval(a) => eval::run(&a),
         #[cfg(feature = "multihost")]
         Command::ActorHost(a) => actor_host::run(&a),
         #[cfg(feature = "multihost")]

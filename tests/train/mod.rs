@@ -13,6 +13,7 @@ use iceoryx2::prelude::*;
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod chaos;
+mod eval;
 mod hang;
 mod poison;
 mod storage;

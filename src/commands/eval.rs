@@ -1,0 +1,98 @@
+//! `fulcrum eval RUN`: the run's policy played for N episodes, greedy or sampled, on its
+//! world or another of the same shape; prints success, return, length and tool use with
+//! 95% intervals and appends a row to `RUN/eval.csv`.
+
+use std::io::Write as _;
+
+use anyhow::{Context, Result};
+use fulcrum_learner::paths::RunPaths;
+use fulcrum_run::eval::{evaluate, summarise, Estimate};
+use fulcrum_run::{bad, BadRequest};
+use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::load_world;
+
+use crate::cli::EvalArgs;
+
+/// The columns of `eval.csv`.
+const COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi";
+
+/// `fulcrum eval`.
+pub fn run(a: &EvalArgs) -> Result<()> {
+    let paths = RunPaths { dir: a.run.clone() };
+    if !paths.config().exists() {
+        return bad(format!(
+            "{}: no config.toml there (is it a run directory?)",
+            a.run.display()
+        ));
+    }
+    if !(1..=100_000).contains(&a.episodes) {
+        return bad(format!("--episodes {} must be 1 to 100000", a.episodes));
+    }
+    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let run_world = load_world(&cfg.world)?;
+    let world = match &a.world {
+        Some(w) => load_world(w)?,
+        None => run_world.clone(),
+    };
+    let ckpt = a.checkpoint.clone().unwrap_or_else(|| paths.checkpoint());
+    let greedy = !a.sample;
+    let seed = a.seed.unwrap_or(cfg.seed);
+    let eps = evaluate(
+        &paths, &cfg, &run_world, &world, &ckpt, a.episodes, greedy, seed,
+    )?;
+    let s = summarise(&eps);
+    // The checkpoint's update and env steps, for the row.
+    let counters = fulcrum_shared::checkpoint::read(&ckpt, &cfg.shape(&run_world).params())
+        .map(|c| c.extra.counters)
+        .unwrap_or_default();
+    let (update, steps) = (
+        counters.get("update").copied().unwrap_or(0),
+        counters.get("env_steps").copied().unwrap_or(0),
+    );
+    let mode = if greedy { "greedy" } else { "sample" };
+    let iv = |e: &Estimate, pct: bool| {
+        if pct {
+            format!("{:.3} (95% CI {:.3} to {:.3})", e.value, e.lo, e.hi)
+        } else {
+            format!("{:.2} (95% CI {:.2} to {:.2})", e.value, e.lo, e.hi)
+        }
+    };
+    println!(
+        "{}: {} episodes of the policy of update {update} ({steps} env steps), {mode}, on world '{}'",
+        a.run.display(),
+        s.episodes,
+        world.name
+    );
+    println!("success rate    {}", iv(&s.success, true));
+    println!("return          {}", iv(&s.ret, false));
+    println!("episode length  {}", iv(&s.length, false));
+    println!("tool use        {}", iv(&s.tool_use, true));
+    let f = |e: &Estimate| format!("{},{},{}", e.value, e.lo, e.hi);
+    let row = format!(
+        "{update},{steps},{},{mode},{seed},{},{},{},{},{}\n",
+        world.name,
+        s.episodes,
+        f(&s.success),
+        f(&s.ret),
+        f(&s.length),
+        f(&s.tool_use)
+    );
+    let path = paths.dir.join("eval.csv");
+    let new = !path.exists();
+    let mut file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&path)
+        .with_context(|| format!("cannot open {}", path.display()))?;
+    let mut text = String::new();
+    if new {
+        text.push_str(COLUMNS);
+        text.push('\n');
+    }
+    text.push_str(&row);
+    // One write per row: a crash leaves whole rows.
+    file.write_all(text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    println!("appended to {}", path.display());
+    Ok(())
+}

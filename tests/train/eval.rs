@@ -1,0 +1,104 @@
+//! `fulcrum eval`: a trained room policy evaluated greedily reaches the success it
+//! trained to; greedy evaluation is deterministic; sampled evaluation is reproducible by
+//! seed; another world of the same shape is played, one of another shape refused.
+
+use std::process::Output;
+
+use crate::util::{fulcrum, TempDir};
+
+fn eval(run: &str, extra: &[&str]) -> Output {
+    fulcrum().args(["eval", run]).args(extra).output().unwrap()
+}
+
+/// The value after `label` in eval's output ("success rate    1.000 (95% CI ...").
+fn figure(out: &str, label: &str) -> f64 {
+    let line = out
+        .lines()
+        .find(|l| l.starts_with(label))
+        .unwrap_or_else(|| panic!("no '{label}' in {out}"));
+    line[label.len()..]
+        .split_whitespace()
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+#[test]
+fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
+    let dir = TempDir::fresh("eval");
+    let d = dir.to_str().unwrap();
+    // room's defaults: the training tests see success 1.0 well within 100k steps.
+    let out = fulcrum()
+        .args([
+            "train", "room", "--steps", "102400", "--seed", "2", "--out", d,
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv")).unwrap();
+    let trained = rows.last().unwrap().success_rate;
+    assert!(trained >= 0.9, "training ended at success {trained}");
+
+    let a = eval(d, &["--episodes", "20"]);
+    let text = String::from_utf8_lossy(&a.stdout).to_string();
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    assert!(
+        text.contains("20 episodes of the policy of update 100 (102400 env steps), greedy"),
+        "{text}"
+    );
+    assert!(figure(&text, "success rate") >= trained, "{text}");
+    // Greedy play from one start in a deterministic world is one episode, 20 times:
+    // the interval of its length is the point, and a second evaluation is the same.
+    let len = figure(&text, "episode length");
+    assert!(
+        text.contains(&format!(
+            "episode length  {len:.2} (95% CI {len:.2} to {len:.2})"
+        )),
+        "{text}"
+    );
+    let b = eval(d, &["--episodes", "20"]);
+    assert_eq!(String::from_utf8_lossy(&b.stdout), text);
+
+    // Sampled: reproducible by seed; its success and tool use are rates with intervals.
+    let s1 = eval(d, &["--episodes", "50", "--sample", "--seed", "7"]);
+    let s2 = eval(d, &["--episodes", "50", "--sample", "--seed", "7"]);
+    assert!(s1.status.success());
+    assert_eq!(s1.stdout, s2.stdout);
+    let st = String::from_utf8_lossy(&s1.stdout).to_string();
+    assert!(st.contains(", sample, on world 'room'"), "{st}");
+
+    // Another world of room's shape (the tree moved): played; exp1-tree: refused.
+    let other = dir.join("moved.toml");
+    std::fs::write(
+        &other,
+        std::fs::read_to_string("worlds/room.toml")
+            .unwrap()
+            .replace("name = \"room\"", "name = \"room-moved\"")
+            .replace("#@a..T#\n#.....#", "#@a...#\n#....T#"),
+    )
+    .unwrap();
+    let o = eval(d, &["--episodes", "5", "--world", other.to_str().unwrap()]);
+    let ot = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(ot.contains("on world 'room-moved'"), "{ot}");
+    let bad = eval(d, &["--world", "exp1-tree"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(err.contains("world 'exp1-tree' (12x8, 4 tools) does not fit the run's policy, which takes worlds of 7x5 with 1 tools"), "{err}");
+
+    // eval.csv: a header and one whole row per evaluation that ran (5 of them).
+    let csv = std::fs::read_to_string(dir.join("eval.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 1 + 5, "{csv}");
+    assert!(lines[0].starts_with("update,env_steps,world,mode,seed,episodes,success"));
+    assert!(
+        lines[1].starts_with("100,102400,room,greedy,2,20,"),
+        "{csv}"
+    );
+    assert!(lines.iter().all(|l| l.split(',').count() == 18), "{csv}");
+}
