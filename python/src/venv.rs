@@ -4,7 +4,7 @@
 //!
 //! | array | dtype | shape | what |
 //! |---|---|---|---|
-//! | `glyphs` | uint8 | (N, H, W) | glyph id per cell (`docs/world.md`, "Observations") |
+//! | `glyphs` | uint8 | (N, H, W) | glyph id per cell (`docs/world.md`, "Episodes and what the learner sees") |
 //! | `flags` | uint8 | (N, 2n + 2) | held tools, then the mode one-hot |
 //! | `action_mask` | int8 | (N, |A|) | 1 where the action can do something (training's mask) |
 //! | `reward` | float32 | (N,) | the task reward R of the last step |
