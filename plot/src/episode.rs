@@ -41,12 +41,7 @@ const GAP: f64 = 8.0;
 
 /// Draws the strip as a PNG at `path`, written atomically.
 pub fn episode_png(path: &Path, s: &Strip) -> Result<(), PlotError> {
-    if s.frames.is_empty() || s.width == 0 || s.height == 0 {
-        return Err(PlotError::NoData {
-            path: path.to_path_buf(),
-            reason: "the episode has no frames",
-        });
-    }
+    s.check(path)?;
     let font = fonts(path)?;
     let (fw, fh) = (s.width as f64 * CELL, s.height as f64 * CELL + CAPTION);
     let cols = COLS.min(s.frames.len());
@@ -79,12 +74,7 @@ const GIF_DELAY: u16 = 25;
 /// step, each as a frame of the strip (cells coloured by E, the glyphs, the caption)
 /// under a line with the world and the step; it loops.
 pub fn episode_gif(path: &Path, s: &Strip) -> Result<(), PlotError> {
-    if s.frames.is_empty() || s.width == 0 || s.height == 0 {
-        return Err(PlotError::NoData {
-            path: path.to_path_buf(),
-            reason: "the episode has no frames",
-        });
-    }
+    s.check(path)?;
     let font = fonts(path)?;
     let (fw, fh) = (s.width as f64 * CELL, s.height as f64 * CELL + CAPTION);
     let width = (fw + 2.0 * GAP).max(160.0);
@@ -138,6 +128,17 @@ fn check_side(path: &Path, what: &'static str, side: f64, limit: usize) -> Resul
 }
 
 impl Strip {
+    /// Refuses a strip with nothing to draw.
+    fn check(&self, path: &Path) -> Result<(), PlotError> {
+        if self.frames.is_empty() || self.width == 0 || self.height == 0 {
+            return Err(PlotError::NoData {
+                path: path.to_path_buf(),
+                reason: "the episode has no frames",
+            });
+        }
+        Ok(())
+    }
+
     /// The largest finite value of any frame (0 when there is none): the top of the
     /// colour scale.
     fn max_value(&self) -> f64 {
