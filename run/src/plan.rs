@@ -132,19 +132,25 @@ pub fn resolve(a: &TrainRequest) -> Result<Planned> {
     })
 }
 
+/// The paths of the run directory `dir`, refused when it holds no `config.toml`.
+pub fn run_dir(dir: &Path) -> Result<RunPaths> {
+    let paths = RunPaths {
+        dir: dir.to_path_buf(),
+    };
+    if !paths.config().exists() {
+        return bad(format!(
+            "{}: no config.toml there (is it a run directory?)",
+            dir.display()
+        ));
+    }
+    Ok(paths)
+}
+
 /// A run directory's configuration with what may change on a resume changed, checked
 /// against its world and its checkpoint.
 fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
     {
-        let paths = RunPaths {
-            dir: dir.to_path_buf(),
-        };
-        if !paths.config().exists() {
-            return bad(format!(
-                "{}: no config.toml there (is it a run directory?)",
-                dir.display()
-            ));
-        }
+        let paths = run_dir(dir)?;
         let lock = lock_for_run(dir)?;
         clean_stale_temps(&paths)?;
         let mut cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;

@@ -5,7 +5,6 @@
 use std::io::Write as _;
 
 use anyhow::{Context, Result};
-use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::eval::{evaluate, summarise, Estimate};
 use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::config::RunConfig;
@@ -18,13 +17,7 @@ const COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success
 
 /// `fulcrum eval`.
 pub fn run(a: &EvalArgs) -> Result<()> {
-    let paths = RunPaths { dir: a.run.clone() };
-    if !paths.config().exists() {
-        return bad(format!(
-            "{}: no config.toml there (is it a run directory?)",
-            a.run.display()
-        ));
-    }
+    let paths = fulcrum_run::plan::run_dir(&a.run)?;
     if !(1..=100_000).contains(&a.episodes) {
         return bad(format!("--episodes {} must be 1 to 100000", a.episodes));
     }

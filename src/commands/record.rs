@@ -10,7 +10,6 @@
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
 use anyhow::Result;
-use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::record::record;
 use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::config::RunConfig;
@@ -20,13 +19,7 @@ use crate::cli::RecordArgs;
 
 /// `fulcrum record`.
 pub fn run(a: &RecordArgs) -> Result<()> {
-    let paths = RunPaths { dir: a.run.clone() };
-    if !paths.config().exists() {
-        return bad(format!(
-            "{}: no config.toml there (is it a run directory?)",
-            a.run.display()
-        ));
-    }
+    let paths = fulcrum_run::plan::run_dir(&a.run)?;
     let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
     let w = load_world(&cfg.world)?;
     if a.episodes == 0 || a.episodes > 100 {
