@@ -56,6 +56,21 @@ if [[ "$mode" != pictures || -d experiments/masked/exp2 ]]; then
     cp "experiments/two-heads/$world/summary.md" "$out/two-heads-$world-summary.md"
   done
 fi
+# A partial view: the baseline and horizon-potential with the full map and with the 9x9
+# window around the agent (train --view crop:4), 10 seeds, on exp1-tree and exp2.
+view() {
+  local world=$1 steps=$2
+  local cmd=($f experiment "$world" --seeds 10 --steps "$steps" --arms baseline,horizon-potential
+             --views full,crop:4 --out "experiments/view/$world")
+  if [[ "$mode" != pictures ]]; then "${cmd[@]}"; else "${cmd[@]}" > /dev/null; fi
+  cp "experiments/view/$world/plots/solved.png" "$out/view-$world-solved.png"
+  cp "experiments/view/$world/summary.md" "$out/view-$world-summary.md"
+}
+if [[ "$mode" != pictures || -d experiments/view/exp2 ]]; then
+  view exp1-tree 499712
+  view exp2 2998272
+  python3 scripts/view_tables.py > "$out/view-tables.md"
+fi
 # The paper's unmasked setting, measured before masking and the advantage floor existed:
 # `run` passes `-- --no-action-mask --ppo-preset cleanrl`, which gives those same runs.
 if [[ "$mode" != pictures || -d experiments/exp3 ]]; then

@@ -368,6 +368,11 @@ pub struct TrainArgs {
     /// held tool; at the direction prompt a direction).
     #[arg(long)]
     pub no_action_mask: bool,
+    /// What of the map the policy sees: full (the whole map), or crop:R (the
+    /// (2R+1) x (2R+1) window centred on the agent, as MiniHack's glyphs_crop; cells
+    /// beyond the map read as rock) [default: full].
+    #[arg(long, value_name = "full|crop:R")]
+    pub view: Option<String>,
     /// Seed of weights, sampling, minibatches and worlds.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -416,6 +421,16 @@ pub struct TrainArgs {
     /// Checkpoint every N updates (and at the end) [default: 10].
     #[arg(long)]
     pub checkpoint_every: Option<u64>,
+    /// Evaluate the policy every U updates (and after the last): --eval-episodes
+    /// episodes with greedy actions (the most probable allowed action), a row in
+    /// RUN/eval.csv and eval/* scalars in TensorBoard [default: 0, never]. A resume may
+    /// change it.
+    #[arg(long, value_name = "U")]
+    pub eval_every: Option<u64>,
+    /// Episodes of each periodic evaluation [default: 10]. The worlds and greedy actions
+    /// are deterministic, so a greedy evaluation's episodes are one episode repeated.
+    #[arg(long, value_name = "N")]
+    pub eval_episodes: Option<usize>,
     /// Adam learning rate at the start, annealed to 0 [default: 2.5e-4].
     #[arg(long)]
     pub lr: Option<f64>,
@@ -602,8 +617,8 @@ pub struct EvalArgs {
     /// Seed of the sampling [default: the run's seed].
     #[arg(long)]
     pub seed: Option<u64>,
-    /// Play on this world (a file or a built-in name) instead of the run's: one of the
-    /// same size and tool count.
+    /// Play on this world (a file or a built-in name) instead of the run's: one with the
+    /// same number of tools, and of the same size unless the run's view is a crop.
     #[arg(long)]
     pub world: Option<String>,
     /// A checkpoint file [default: RUN/checkpoints/latest.safetensors].
@@ -639,6 +654,10 @@ pub struct ExperimentArgs {
     /// beta-<b> for additive, <form>-beta-<b> otherwise).
     #[arg(long, allow_hyphen_values = true)]
     pub beta_sweep: Option<String>,
+    /// Views, comma separated (full, crop:R): every arm once per view, the full view's
+    /// under the arm's name, a crop's as <arm>-crop<R> (train --view) [default: full].
+    #[arg(long, value_name = "VIEWS")]
+    pub views: Option<String>,
     /// Experiment directory [default: experiments/<world>-<time>]; the same command
     /// with the same directory resumes.
     #[arg(long)]
@@ -715,6 +734,7 @@ impl TrainArgs {
                 (a.beta.is_some(), "--beta"),
                 (a.no_empowerment, "--no-empowerment"),
                 (a.no_action_mask, "--no-action-mask"),
+                (a.view.is_some(), "--view"),
                 (a.intrinsic_value_head, "--intrinsic-value-head"),
                 (a.gamma_int.is_some(), "--gamma-int"),
                 (a.intrinsic.is_some(), "--intrinsic"),
@@ -765,6 +785,12 @@ impl TrainArgs {
             intrinsic_value_head: a.intrinsic_value_head,
             gamma_int: a.gamma_int,
             action_mask: !a.no_action_mask,
+            view: a
+                .view
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(|e| BadRequest(format!("--view: {e}")))?,
             seed: a.seed,
             steps: a.steps,
             out: a.out.clone(),
@@ -780,6 +806,8 @@ impl TrainArgs {
             horizon_equipped: a.horizon_equipped,
             max_policy_lag: a.max_policy_lag,
             checkpoint_every: a.checkpoint_every,
+            eval_every: a.eval_every,
+            eval_episodes: a.eval_episodes,
             lr: a.lr,
             epochs: a.epochs,
             minibatches: a.minibatches,

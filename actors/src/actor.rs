@@ -340,7 +340,8 @@ impl<'a> Actor<'a> {
             return Ok(None);
         }
         for (e, r) in actor.envs.iter().enumerate() {
-            world.observe(
+            cfg.view.observe(
+                world,
                 &r.episode.state,
                 &mut actor.cur_g[e * c..(e + 1) * c],
                 &mut actor.cur_f[e * f..(e + 1) * f],
@@ -529,7 +530,7 @@ impl<'a> Actor<'a> {
                 if out.truncated {
                     let mut gg = vec![0u8; c];
                     let mut ff = vec![0u8; f];
-                    self.world.observe(&next, &mut gg, &mut ff);
+                    self.cfg.view.observe(self.world, &next, &mut gg, &mut ff);
                     self.finals.push((i, gg, ff));
                 }
                 h.episodes += 1;
@@ -538,11 +539,20 @@ impl<'a> Actor<'a> {
                 h.ext_return_sum += rec.ext_return as f64;
                 h.length_sum += rec.episode.t as f64;
                 *rec = EnvRecord::new(self.world.reset());
-                self.world
-                    .observe(&rec.episode.state, &mut self.cur_g[ge], &mut self.cur_f[fe]);
+                self.cfg.view.observe(
+                    self.world,
+                    &rec.episode.state,
+                    &mut self.cur_g[ge],
+                    &mut self.cur_f[fe],
+                );
             } else {
-                self.world
-                    .observe_update(&prev, &next, &mut self.cur_g[ge], &mut self.cur_f[fe]);
+                self.cfg.view.update(
+                    self.world,
+                    &prev,
+                    &next,
+                    &mut self.cur_g[ge],
+                    &mut self.cur_f[fe],
+                );
             }
         }
     }

@@ -23,6 +23,7 @@ use fulcrum_learner::net::Net;
 use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::load_world;
 use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_shared::View;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -37,7 +38,7 @@ fn main() {
     let actions: Vec<u8> = (0..n)
         .map(|_| rng.random_range(0..w.num_actions() as u8))
         .collect();
-    let shape = shape_for(&w, 64);
+    let shape = shape_for(&w, View::Full, 64);
     let net = Net::new(shape, 1, &Device::Cpu).unwrap();
     let mut adam = Adam::new(&net).unwrap();
     let mut glyphs = vec![0u8; n * spec.cells()];

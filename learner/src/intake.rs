@@ -76,7 +76,10 @@ mod tests {
             remote: false,
             stall_timeout_s: 10.0,
             checkpoint_every: 10,
+            eval_every: 0,
+            eval_episodes: 10,
             action_mask: mask,
+            view: fulcrum_shared::View::Full,
             intrinsic_value_head: two_heads,
             gamma_int: 0.99,
             ppo: PpoConfig {

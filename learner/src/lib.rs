@@ -23,6 +23,8 @@ mod csv;
 pub mod diagnostics;
 /// Why the learner process failed.
 pub mod error;
+/// `eval.csv`: evaluations of the policy, by `fulcrum eval` and `train --eval-every`.
+pub mod evalcsv;
 /// The PPO update on flat buffers (hand-written forward and backward, fused Adam).
 pub mod fused;
 /// Generalised advantage estimation with termination and truncation.

@@ -9,6 +9,7 @@
 
 use candle_core::{Device, Result};
 use fulcrum_shared::layout::shape_for;
+use fulcrum_shared::View;
 use fulcrum_shared::{Episode, World};
 use rand::seq::SliceRandom;
 use rand::SeedableRng;
@@ -96,7 +97,7 @@ pub fn train(
     mut on_update: impl FnMut(&UpdateLog),
 ) -> Result<(Net, Vec<UpdateLog>)> {
     let dev = Device::Cpu;
-    let shape = shape_for(world, cfg.hidden);
+    let shape = shape_for(world, View::Full, cfg.hidden);
     let net = Net::new(shape, cfg.seed, &dev)?;
     let mut adam = Adam::new(&net)?;
     let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed ^ 0x5eed_5eed);

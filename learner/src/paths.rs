@@ -22,6 +22,10 @@ impl RunPaths {
     pub fn checkpoint(&self) -> PathBuf {
         self.dir.join("checkpoints").join("latest.safetensors")
     }
+    /// `eval.csv`: evaluations of the policy ([`crate::evalcsv`]).
+    pub fn eval(&self) -> PathBuf {
+        self.dir.join("eval.csv")
+    }
     /// `tb/`: TensorBoard event files.
     pub fn tb(&self) -> PathBuf {
         self.dir.join("tb")

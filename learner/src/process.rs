@@ -47,6 +47,7 @@ use crate::counters::Counters;
 use crate::csv::trim_rows;
 use crate::diagnostics::Stats;
 use crate::error::LearnerError;
+use crate::evalcsv::EvalRow;
 use crate::hosts::{HostsLog, HOSTS_COLUMNS};
 use crate::intake::take_chunk;
 use crate::local::update;
@@ -75,22 +76,50 @@ pub fn run_learner(
     stop: &'static AtomicBool,
     progress: impl FnMut(&MetricsRow, u64),
 ) -> Result<LearnerExit, LearnerError> {
-    run_learner_noticed(world, cfg, paths, namespace, stop, progress, |_| {})
+    let hooks = Hooks {
+        notice: Box::new(|_| {}),
+        evaluate: None,
+    };
+    run_learner_with(world, cfg, paths, namespace, stop, progress, hooks)
 }
 
-/// [`run_learner`], with `notice` told when the learner waits for chunks and when it
-/// goes on without a local actor ([`crate::watch`]).
-pub fn run_learner_noticed<'a>(
+/// Plays the policy of the given flat weights (the order of
+/// [`fulcrum_shared::layout::NetShape::params`]) greedily and says what it did: the
+/// periodic evaluation of `train --eval-every`. The learner fills in the row's update and
+/// env steps, appends it to `eval.csv` and gives its scalars to TensorBoard.
+pub type Evaluate<'a> = Box<dyn FnMut(&[f32]) -> Result<EvalRow, String> + 'a>;
+
+/// What the learner tells its process, and asks of it, besides the metrics rows.
+pub struct Hooks<'a> {
+    /// Told when the learner waits for chunks and when it goes on without a local actor
+    /// ([`crate::watch`]).
+    pub notice: Box<dyn FnMut(&Notice) + 'a>,
+    /// Called every `eval_every` updates and after the last (runs with
+    /// `eval_every > 0`).
+    pub evaluate: Option<Evaluate<'a>>,
+}
+
+impl std::fmt::Debug for Hooks<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Hooks")
+            .field("evaluate", &self.evaluate.is_some())
+            .finish_non_exhaustive()
+    }
+}
+
+/// [`run_learner`], with its [`Hooks`].
+pub fn run_learner_with<'a>(
     world: &'a World,
     cfg: &'a RunConfig,
     paths: &'a RunPaths,
     namespace: &str,
     stop: &'static AtomicBool,
     progress: impl FnMut(&MetricsRow, u64),
-    notice: impl FnMut(&Notice) + 'a,
+    hooks: Hooks<'a>,
 ) -> Result<LearnerExit, LearnerError> {
     let mut l = Learner::new(world, cfg, paths, namespace, stop)?;
-    l.notice = Box::new(notice);
+    l.notice = hooks.notice;
+    l.evaluate = hooks.evaluate;
     l.run(progress)
 }
 
@@ -227,6 +256,8 @@ struct Learner<'a> {
     local: LocalStall,
     /// Where the learner's notices go.
     notice: Box<dyn FnMut(&Notice) + 'a>,
+    /// The periodic evaluation (`train --eval-every`).
+    evaluate: Option<Evaluate<'a>>,
 }
 
 impl<'a> Learner<'a> {
@@ -284,7 +315,11 @@ impl<'a> Learner<'a> {
         let ports = Ports::open(namespace, net.len())?;
         ports.publish(&net, run, world_hash, ctr.update)?;
         let metrics = open_metrics(&paths.metrics())?;
-        let tb = open_events(paths, ctr.wall_s);
+        // Periodic evaluations after the checkpoint are made again.
+        let evals = crate::evalcsv::trim_periodic(&paths.eval(), ctr.update).map_err(|e| {
+            LearnerError::Run(format!("cannot trim {}: {e}", paths.eval().display()))
+        })?;
+        let tb = open_events(paths, &evals, ctr.wall_s);
         let hosts = if cfg.remote {
             Some(HostsLog::open(paths)?)
         } else {
@@ -318,6 +353,7 @@ impl<'a> Learner<'a> {
             fault: Fault::from_env(),
             local: LocalStall::default(),
             notice: Box::new(|_| {}),
+            evaluate: None,
         })
     }
 
@@ -349,6 +385,10 @@ impl<'a> Learner<'a> {
             self.publish(self.ctr.update)?;
             let row = self.record(stats, &batch, &chunks)?;
             progress(&row, self.planned(batch.len));
+            let every = self.cfg.eval_every;
+            if every > 0 && (self.ctr.update % every == 0 || !self.more()) {
+                self.periodic_eval(row.wall_s)?;
+            }
             if self.ctr.update % self.cfg.checkpoint_every == 0 || !self.more() {
                 self.ctr.wall_s = row.wall_s;
                 self.checkpoint()?;
@@ -630,6 +670,33 @@ impl<'a> Learner<'a> {
         Ok(stats)
     }
 
+    /// The periodic evaluation of the weights just made, appended to `eval.csv` and
+    /// TensorBoard (before the update's checkpoint, so that a resume from an earlier one
+    /// drops the row and makes it again).
+    fn periodic_eval(&mut self, wall_s: f64) -> Result<(), LearnerError> {
+        let Some(evaluate) = self.evaluate.as_mut() else {
+            return Ok(());
+        };
+        let flat = self.net.flat()?;
+        let mut row = evaluate(&flat)
+            .map_err(|e| LearnerError::Run(format!("the periodic evaluation failed: {e}")))?;
+        row.update = self.ctr.update;
+        row.env_steps = self.ctr.env_steps;
+        let path = self.paths.eval();
+        crate::evalcsv::append(&path, &row)
+            .map_err(|e| LearnerError::Run(format!("cannot write {}: {e}", path.display())))?;
+        if let Some(tb) = self.tb.as_mut() {
+            if let Err(e) = tb.append_eval(&row, wall_s) {
+                tracing::warn!(
+                    "TensorBoard events stop here ({}: {e}); eval.csv goes on, and --resume writes them again",
+                    tb.path().display()
+                );
+                self.tb = None;
+            }
+        }
+        Ok(())
+    }
+
     /// Publish the weights as `version`.
     fn publish(&self, version: u64) -> Result<(), LearnerError> {
         self.ports
@@ -723,9 +790,9 @@ impl<'a> Learner<'a> {
     fn checkpoint(&self) -> Result<(), LearnerError> {
         let mut extra = Extra::default();
         self.ctr.store(&mut extra);
-        extra
-            .meta
-            .insert("action_mask".into(), self.cfg.action_mask.to_string());
+        for (key, mark) in self.cfg.checkpoint_marks() {
+            extra.meta.insert(key.into(), mark);
+        }
         extra
             .blobs
             .insert("learner_rng".into(), checkpoint::rng_state(&self.rng));
@@ -745,10 +812,14 @@ impl<'a> Learner<'a> {
 
 /// The run's TensorBoard events, rewritten from the rows `metrics.csv` holds; None (with
 /// a warning) when they cannot be written: they are a view, not the record.
-fn open_events(paths: &RunPaths, wall_s: f64) -> Option<crate::tensorboard::EventWriter> {
+fn open_events(
+    paths: &RunPaths,
+    evals: &[EvalRow],
+    wall_s: f64,
+) -> Option<crate::tensorboard::EventWriter> {
     let config = std::fs::read_to_string(paths.config()).unwrap_or_default();
     let rows = crate::metrics::read_metrics(&paths.metrics()).unwrap_or_default();
-    match crate::tensorboard::EventWriter::create(&paths.tb(), &config, &rows, wall_s) {
+    match crate::tensorboard::EventWriter::create(&paths.tb(), &config, &rows, evals, wall_s) {
         Ok(w) => Some(w),
         Err(e) => {
             tracing::warn!(

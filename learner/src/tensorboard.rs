@@ -23,14 +23,17 @@
 //! `config.toml` as text (the text plugin), then one event per metrics row: every
 //! column as a scalar whose tag is the column's name, at step = env steps (values that
 //! are not finite, such as the success rate of an update in which no episode ended, are
-//! left out, as `metrics.csv` leaves them empty). `metrics.csv` stays the record: on
-//! `--resume` the events are written again from the rows it keeps.
+//! left out, as `metrics.csv` leaves them empty). With `train --eval-every`, each
+//! periodic evaluation adds `eval/success_rate`, `eval/return`, `eval/episode_length`
+//! and `eval/tool_use` at its env steps. `metrics.csv` and `eval.csv` stay the record: on
+//! `--resume` the events are written again from the rows they keep.
 
 use std::fs::File;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::{SystemTime, UNIX_EPOCH};
 
+use crate::evalcsv::EvalRow;
 use crate::metrics::{MetricsRow, METRICS_COLUMNS};
 
 /// CRC-32C of `data` (bitwise-reflected, table-driven).
@@ -181,6 +184,17 @@ fn row_event(start: f64, row: &MetricsRow) -> Vec<u8> {
     summary_event(start + row.wall_s.max(0.0), row.env_steps, &values)
 }
 
+/// The events of one periodic evaluation (`eval/...` scalars at its env steps).
+fn eval_event(wall: f64, row: &EvalRow) -> Vec<u8> {
+    let values: Vec<Vec<u8>> = row
+        .scalars()
+        .into_iter()
+        .filter(|(_, v)| v.is_finite())
+        .map(|(tag, v)| scalar_value(tag, v as f32))
+        .collect();
+    summary_event(wall, row.env_steps, &values)
+}
+
 /// The event file of a run.
 #[derive(Debug)]
 pub struct EventWriter {
@@ -199,11 +213,13 @@ fn now() -> f64 {
 impl EventWriter {
     /// Start the run's events in `dir` (made if missing; earlier event files there are
     /// replaced): the version, `config` as text, then `rows` (those `metrics.csv` holds
-    /// on a resume). `wall_s` is the run's wall time so far.
+    /// on a resume) and `evals` (the periodic evaluations `eval.csv` holds, each at the
+    /// wall time of its update's row). `wall_s` is the run's wall time so far.
     pub fn create(
         dir: &Path,
         config: &str,
         rows: &[MetricsRow],
+        evals: &[EvalRow],
         wall_s: f64,
     ) -> std::io::Result<EventWriter> {
         std::fs::create_dir_all(dir)?;
@@ -217,6 +233,13 @@ impl EventWriter {
         )));
         for r in rows {
             data.extend(record(&row_event(start, r)));
+        }
+        for e in evals {
+            let wall = rows
+                .iter()
+                .find(|r| r.update == e.update)
+                .map_or(0.0, |r| r.wall_s);
+            data.extend(record(&eval_event(start + wall.max(0.0), e)));
         }
         let name = format!("events.out.tfevents.{}.fulcrum", t as u64);
         let path = dir.join(&name);
@@ -239,6 +262,12 @@ impl EventWriter {
     /// Append one metrics row.
     pub fn append(&mut self, row: &MetricsRow) -> std::io::Result<()> {
         self.file.write_all(&record(&row_event(self.start, row)))
+    }
+
+    /// Append one periodic evaluation, at the run's wall time `wall_s`.
+    pub fn append_eval(&mut self, row: &EvalRow, wall_s: f64) -> std::io::Result<()> {
+        let event = eval_event(self.start + wall_s.max(0.0), row);
+        self.file.write_all(&record(&event))
     }
 
     /// The file written.

@@ -4,6 +4,8 @@ Observation (a ``Dict``), for a ``W x H`` world with ``n`` tools:
 
 - ``glyphs``: uint8 ``(H, W)``, a glyph id per cell: 0 rock, 1 floor, 2 goal, 3 agent,
   4 tree, 5 wall, 6 closed door, 7 open door, 8 boulder, 9 + k tool k on the floor;
+  with ``view="crop:R"``, uint8 ``(2R + 1, 2R + 1)``: the window centred on the agent
+  (as MiniHack's ``glyphs_crop``), cells beyond the map read as rock;
 - ``flags``: uint8 ``(2n + 2,)``: held tool k at k, then the mode one-hot (normal,
   choosing-tool, choosing-direction(k)).
 
@@ -44,12 +46,13 @@ GLYPH_NAMES = (
 GLYPH_TOOL0 = 9
 
 
-def _spaces(world: _native.World) -> tuple[spaces.Dict, spaces.Discrete]:
+def _spaces(core: _native.VecCore) -> tuple[spaces.Dict, spaces.Discrete]:
+    world = core.world
     n = len(world.tools)
     obs = spaces.Dict(
         {
             "glyphs": spaces.Box(
-                0, GLYPH_TOOL0 + n - 1, (world.height, world.width), np.uint8
+                0, GLYPH_TOOL0 + n - 1, tuple(core.glyphs.shape[1:]), np.uint8
             ),
             "flags": spaces.Box(0, 1, (2 * n + 2,), np.uint8),
         }
@@ -66,7 +69,9 @@ def _first_seed(seed: int | list[int] | None) -> int | None:
 class FulcrumVectorEnv(gym.vector.VectorEnv):
     """``num_envs`` episodes of one world, stepped together in Rust.
 
-    ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path.
+    ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path;
+    ``view`` is ``"full"`` (the whole map) or ``"crop:R"`` (the ``(2R+1) x (2R+1)``
+    window around the agent), as ``fulcrum train --view``.
     """
 
     metadata = {
@@ -81,17 +86,19 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         num_envs: int = 1,
         render_mode: str | None = None,
         tile: int = 16,
+        view: str = "full",
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array or None"
             )
-        self._core = _native.VecCore(world, int(num_envs))
+        self._core = _native.VecCore(world, int(num_envs), view)
         self.world = self._core.world
+        self.view = self._core.view
         self.num_envs = int(num_envs)
         self.render_mode = render_mode
         self.tile = tile
-        self.single_observation_space, self.single_action_space = _spaces(self.world)
+        self.single_observation_space, self.single_action_space = _spaces(self._core)
         self.observation_space = batch_space(
             self.single_observation_space, self.num_envs
         )
@@ -157,7 +164,8 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
 class FulcrumEnv(gym.Env):
     """One episode of a world (``gymnasium.make("fulcrum/exp1-tree-v0")``).
 
-    Observations are copies; ``info["action_mask"]`` is the per-mode mask.
+    Observations are copies; ``info["action_mask"]`` is the per-mode mask; ``view`` as
+    :class:`FulcrumVectorEnv`'s.
     """
 
     metadata = {"render_modes": ["rgb_array", "ansi"], "render_fps": 4}
@@ -167,16 +175,18 @@ class FulcrumEnv(gym.Env):
         world: str | _native.World = "exp1-tree",
         render_mode: str | None = None,
         tile: int = 16,
+        view: str = "full",
     ):
         if render_mode not in (None, "rgb_array", "ansi"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array, ansi or None"
             )
-        self._core = _native.VecCore(world, 1)
+        self._core = _native.VecCore(world, 1, view)
         self.world = self._core.world
+        self.view = self._core.view
         self.render_mode = render_mode
         self.tile = tile
-        self.observation_space, self.action_space = _spaces(self.world)
+        self.observation_space, self.action_space = _spaces(self._core)
         self._ended = False
 
     def _observe(self):
@@ -225,9 +235,12 @@ def make_vec(
     num_envs: int = 1,
     seed: int | None = None,
     render_mode: str | None = None,
+    view: str = "full",
 ) -> FulcrumVectorEnv:
     """A :class:`FulcrumVectorEnv`, reset (with ``seed`` if given)."""
-    env = FulcrumVectorEnv(world, num_envs=num_envs, render_mode=render_mode)
+    env = FulcrumVectorEnv(
+        world, num_envs=num_envs, render_mode=render_mode, view=view
+    )
     env.reset(seed=seed)
     return env
 

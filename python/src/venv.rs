@@ -1,10 +1,12 @@
 //! `VecCore`: N episodes of one world stepped together in Rust.
 //!
-//! Shapes, for N environments of a `W x H` world with `n` tools (|A| = 5 + n):
+//! Shapes, for N environments of a `W x H` world with `n` tools (|A| = 5 + n), seen in
+//! full (`view = "full"`) or through the `S x S` window around the agent, `S = 2R + 1`
+//! (`view = "crop:R"`, cells beyond the map as rock; `fulcrum_shared::view`):
 //!
 //! | array | dtype | shape | what |
 //! |---|---|---|---|
-//! | `glyphs` | uint8 | (N, H, W) | glyph id per cell (`docs/world.md`, "Episodes and what the learner sees") |
+//! | `glyphs` | uint8 | (N, H, W) or (N, S, S) | glyph id per cell (`docs/world.md`, "Episodes and what the learner sees") |
 //! | `flags` | uint8 | (N, 2n + 2) | held tools, then the mode one-hot |
 //! | `action_mask` | int8 | (N, |A|) | 1 where the action can do something (training's mask) |
 //! | `reward` | float32 | (N,) | the task reward R of the last step |
@@ -20,7 +22,7 @@
 use std::sync::Arc;
 
 use fulcrum_shared::mask::action_mask;
-use fulcrum_shared::{Episode, ObsSpec, World};
+use fulcrum_shared::{Episode, ObsSpec, View, World};
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods,
 };
@@ -42,6 +44,7 @@ const MAX_SHAPERS: usize = 4;
 pub struct VecCore {
     pyworld: Py<PyWorld>,
     world: Arc<World>,
+    view: View,
     spec: ObsSpec,
     eps: Vec<Episode>,
     /// The last step ended episode e: the next step resets it.
@@ -197,11 +200,11 @@ impl VecCore {
 }
 
 /// Writes episode `e`'s observation of its state (from scratch), mask and packed state.
-fn observe_all(w: &World, spec: &ObsSpec, ep: &Episode, e: usize, v: &mut Views<'_>) {
+fn observe_all(w: &World, view: View, spec: &ObsSpec, ep: &Episode, e: usize, v: &mut Views<'_>) {
     let (c, f, a) = (spec.cells(), spec.flags, w.num_actions());
     let g = &mut v.glyphs[e * c..(e + 1) * c];
     let fl = &mut v.flags[e * f..(e + 1) * f];
-    w.observe(&ep.state, g, fl);
+    view.observe(w, &ep.state, g, fl);
     write_mask(fl, &mut v.mask[e * a..(e + 1) * a]);
     write_state(ep, &mut v.states[e * 38..(e + 1) * 38]);
 }
@@ -221,17 +224,25 @@ fn write_state(ep: &Episode, out: &mut [u8]) {
 
 #[pymethods]
 impl VecCore {
-    /// `num_envs` episodes of `world`, each at the initial state.
+    /// `num_envs` episodes of `world`, each at the initial state, seen through `view`
+    /// (`"full"` or `"crop:R"`).
     #[new]
-    fn new(py: Python<'_>, world: &Bound<'_, PyAny>, num_envs: usize) -> PyResult<Self> {
+    #[pyo3(signature = (world, num_envs, view = "full"))]
+    fn new(
+        py: Python<'_>,
+        world: &Bound<'_, PyAny>,
+        num_envs: usize,
+        view: &str,
+    ) -> PyResult<Self> {
         if !(1..=MAX_ENVS).contains(&num_envs) {
             return Err(value_error(format!(
                 "num_envs is {num_envs}: give 1 to {MAX_ENVS}"
             )));
         }
+        let view: View = view.parse().map_err(value_error)?;
         let pyworld = crate::world::world_arg(world)?;
         let w = Arc::clone(&pyworld.get().world);
-        let spec = w.obs_spec();
+        let spec = view.spec(&w);
         let n = num_envs;
         let na = w.num_actions();
         let core = VecCore {
@@ -246,6 +257,7 @@ impl VecCore {
             ended: vec![false; n],
             was_reset: vec![true; n],
             acts: vec![0; n],
+            view,
             spec,
             world: w,
             pyworld,
@@ -283,7 +295,7 @@ impl VecCore {
             self.eps[e] = self.world.reset();
             self.ended[e] = false;
             self.was_reset[e] = true;
-            observe_all(&self.world, &self.spec, &self.eps[e], e, &mut v);
+            observe_all(&self.world, self.view, &self.spec, &self.eps[e], e, &mut v);
             v.reward[e] = 0.0;
             v.terminated[e] = false;
             v.truncated[e] = false;
@@ -317,7 +329,7 @@ impl VecCore {
                 *out = Some(unsafe { b.views(n)? });
             }
         }
-        let (w, spec) = (&*self.world, &self.spec);
+        let (w, view, spec) = (&*self.world, self.view, &self.spec);
         let (eps, ended, was_reset, acts, shapers) = (
             &mut self.eps,
             &mut self.ended,
@@ -346,7 +358,7 @@ impl VecCore {
                     v.terminated[e] = o.terminated;
                     v.truncated[e] = o.truncated;
                 }
-                w.observe_update(&prev, &eps[e].state, g, fl);
+                view.update(w, &prev, &eps[e].state, g, fl);
                 write_mask(fl, &mut v.mask[e * na..(e + 1) * na]);
                 write_state(&eps[e], &mut v.states[e * 38..(e + 1) * 38]);
             }
@@ -410,7 +422,13 @@ impl VecCore {
         self.shapers.iter().map(|s| s.summary()).collect()
     }
 
-    /// uint8 (N, H, W): the glyph grids.
+    /// The view, as given (`"full"` or `"crop:R"`).
+    #[getter]
+    fn view(&self) -> String {
+        self.view.to_string()
+    }
+
+    /// uint8 (N, H, W), or (N, S, S) with a crop: the glyph grids.
     #[getter]
     fn glyphs(&self, py: Python<'_>) -> Py<PyArray3<u8>> {
         self.glyphs.clone_ref(py)

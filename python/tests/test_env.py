@@ -203,3 +203,40 @@ def test_vector_env_through_gymnasium_make_vec():
     obs, _ = env.reset(seed=0)
     assert obs["glyphs"].shape[0] == 4
     env.step(env.action_space.sample())
+
+
+def crop_reference(glyphs: np.ndarray, x: int, y: int, r: int) -> np.ndarray:
+    """The (2r+1)^2 window of a full glyph grid around (x, y), rock (0) beyond it: the
+    full map padded with r cells of rock on every side, then sliced."""
+    padded = np.pad(glyphs, r, constant_values=0)
+    return padded[y : y + 2 * r + 1, x : x + 2 * r + 1]
+
+
+@pytest.mark.parametrize("name,r", [("exp1-tree", 4), ("exp2", 4), ("room", 2), ("exp3", 7)])
+def test_a_crop_is_the_full_maps_window_at_random_states(name, r):
+    n = 16
+    full = fulcrum.make_vec(name, num_envs=n, seed=0)
+    crop = fulcrum.make_vec(name, num_envs=n, seed=0, view=f"crop:{r}")
+    assert crop.view == f"crop:{r}" and full.view == "full"
+    side = 2 * r + 1
+    assert crop.single_observation_space["glyphs"].shape == (side, side)
+    assert crop.observation_space["glyphs"].shape == (n, side, side)
+    rng = np.random.default_rng(5)
+    beyond = 0
+    for step in range(400):
+        acts = rng.integers(0, len(full.world.actions), n)
+        fo = full.step(acts)[0]
+        co = crop.step(acts)[0]
+        assert np.array_equal(fo["flags"], co["flags"]), step
+        for e in range(n):
+            (y, x) = np.argwhere(fo["glyphs"][e] == 3)[0]
+            want = crop_reference(fo["glyphs"][e], x, y, r)
+            assert np.array_equal(co["glyphs"][e], want), (step, e)
+            beyond += int(x < r or y < r or x + r >= full.world.width or y + r >= full.world.height)
+    # The walks do reach the map's edge, where the window holds rock beyond it.
+    assert beyond > 100
+
+
+def test_a_bad_view_is_one_clear_sentence():
+    with pytest.raises(ValueError, match=r"unknown view 'crop:0' \(views: full, or crop:R"):
+        fulcrum.make_vec("room", num_envs=1, view="crop:0")

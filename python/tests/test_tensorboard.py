@@ -1,5 +1,6 @@
 """`fulcrum train` writes TensorBoard events that TensorBoard's own reader reads back
-with every value of metrics.csv, on a fresh run and after `--resume`."""
+with every value of metrics.csv (and, with --eval-every, of eval.csv), on a fresh run and
+after `--resume`."""
 
 import csv
 import subprocess
@@ -55,15 +56,38 @@ def test_events_hold_every_metrics_value(fulcrum_bin, tmp_path):
     assert len(list((run / "tb").iterdir())) == 1
 
 
+def assert_events_equal_evals(run):
+    with open(run / "eval.csv") as f:
+        rows = [r for r in csv.DictReader(f) if r["mode"] == "train-greedy"]
+    acc = read_events(run)
+    for tag, col in [
+        ("eval/success_rate", "success"),
+        ("eval/return", "return"),
+        ("eval/episode_length", "length"),
+        ("eval/tool_use", "tool_use"),
+    ]:
+        got = [(e.step, e.value) for e in acc.Scalars(tag)]
+        assert [s for s, _ in got] == [int(r["env_steps"]) for r in rows], tag
+        assert np.array_equal(
+            np.array([v for _, v in got], dtype=np.float32),
+            np.array([float(r[col]) for r in rows], dtype=np.float32),
+        ), tag
+    return rows
+
+
 def test_events_after_a_resume_are_the_rows_kept(fulcrum_bin, tmp_path):
     run = tmp_path / "run"
     train(
-        fulcrum_bin, "room", "--steps", "40960", "--seed", "3",
+        fulcrum_bin, "room", "--steps", "40960", "--seed", "3", "--eval-every", "4",
         "--stop-after-updates", "15", "--out", str(run),
     )
     assert len(metrics(run)) == 15
     train(fulcrum_bin, "--resume", str(run))
     rows = assert_events_equal_metrics(run)
     assert [int(r["update"]) for r in rows] == list(range(1, 41))
+    # Periodic evaluations at 4, 8, ..., 40: those after the checkpoint (update 10)
+    # made again by the resume, none twice.
+    evals = assert_events_equal_evals(run)
+    assert [int(r["update"]) for r in evals] == list(range(4, 41, 4))
     # One file: the resume rewrote the events from metrics.csv and went on.
     assert len(list((run / "tb").iterdir())) == 1

@@ -9,7 +9,7 @@ use std::sync::atomic::Ordering;
 use anyhow::Result;
 use fulcrum_learner::metrics::MetricsRow;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_learner::process::{run_learner_noticed, LearnerExit};
+use fulcrum_learner::process::{run_learner_with, Hooks, LearnerExit};
 use fulcrum_learner::watch::Notice;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
@@ -79,7 +79,11 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
         let _ = writeln!(out, "{}", crate::watchdog::notice_line(n));
         let _ = out.flush();
     };
-    let exit = run_learner_noticed(&w, &cfg, &paths, &a.namespace, &STOP, progress, notice)?;
+    let hooks = Hooks {
+        notice: Box::new(notice),
+        evaluate: (cfg.eval_every > 0).then(|| crate::eval::periodic(&cfg, &w)),
+    };
+    let exit = run_learner_with(&w, &cfg, &paths, &a.namespace, &STOP, progress, hooks)?;
     match exit {
         LearnerExit::Finished => Ok(()),
         LearnerExit::Interrupted if paused && !signalled() => std::process::exit(EXIT_PAUSED),

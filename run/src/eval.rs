@@ -12,9 +12,12 @@
 use std::path::Path;
 
 use anyhow::Result;
+use fulcrum_actors::policy::Policy;
+use fulcrum_learner::evalcsv::{EvalRow, PERIODIC};
 use fulcrum_learner::paths::RunPaths;
+use fulcrum_learner::process::Evaluate;
 use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::World;
+use fulcrum_shared::{View, World};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -144,19 +147,33 @@ pub fn evaluate(
 ) -> Result<Vec<Episode>> {
     if cfg.shape(world) != cfg.shape(run_world) {
         let (a, b) = (world.obs_spec(), run_world.obs_spec());
-        return bad(format!(
-            "world '{}' ({}x{}, {} tools) does not fit the run's policy, which takes worlds of {}x{} with {} tools",
-            world.name,
-            a.width,
-            a.height,
-            world.tools.len(),
-            b.width,
-            b.height,
-            run_world.tools.len()
-        ));
+        let (n, m) = (world.tools.len(), run_world.tools.len());
+        return bad(match cfg.view {
+            View::Full => format!(
+                "world '{}' ({}x{}, {n} tools) does not fit the run's policy, which takes worlds of {}x{} with {m} tools",
+                world.name, a.width, a.height, b.width, b.height
+            ),
+            View::Crop(_) => format!(
+                "world '{}' ({n} tools) does not fit the run's policy, which sees a {} window of worlds with {m} tools",
+                world.name, cfg.view
+            ),
+        });
     }
     let mut policy = load_policy(ckpt, paths, cfg, run_world)?;
-    let spec = world.obs_spec();
+    Ok(play(&mut policy, cfg.view, world, episodes, greedy, seed))
+}
+
+/// Plays `episodes` episodes of `policy` on `world` seen through `view`: greedy, or
+/// sampled with a ChaCha generator seeded by `seed`.
+pub fn play(
+    policy: &mut Policy,
+    view: View,
+    world: &World,
+    episodes: usize,
+    greedy: bool,
+    seed: u64,
+) -> Vec<Episode> {
+    let spec = view.spec(world);
     let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut act, mut lp, mut v) = ([0u8], [0.0f32], [0.0f32]);
@@ -164,7 +181,7 @@ pub fn evaluate(
     for _ in 0..episodes {
         let mut ep = world.reset();
         let mut ret = 0.0f64;
-        world.observe(&ep.state, &mut g, &mut f);
+        view.observe(world, &ep.state, &mut g, &mut f);
         loop {
             let a = if greedy {
                 policy.greedy(&g, &f)
@@ -174,7 +191,7 @@ pub fn evaluate(
             };
             let prev = ep.state;
             let o = world.env_step(&mut ep, a);
-            world.observe_update(&prev, &ep.state, &mut g, &mut f);
+            view.update(world, &prev, &ep.state, &mut g, &mut f);
             ret += o.reward as f64;
             if o.terminated || o.truncated {
                 out.push(Episode {
@@ -187,7 +204,51 @@ pub fn evaluate(
             }
         }
     }
-    Ok(out)
+    out
+}
+
+/// The periodic evaluation of `train --eval-every`: the learner's weights played
+/// greedily for the run's `eval_episodes` episodes on its world, as a row of `eval.csv`
+/// (the learner fills in the update and env steps).
+pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Evaluate<'a> {
+    let mut policy = Policy::new(cfg.shape(world)).with_action_mask(cfg.action_mask);
+    Box::new(move |flat: &[f32]| {
+        if !policy.set(flat) {
+            return Err(format!(
+                "{} weights do not fit the network of {}",
+                flat.len(),
+                policy.len()
+            ));
+        }
+        let eps = play(
+            &mut policy,
+            cfg.view,
+            world,
+            cfg.eval_episodes,
+            true,
+            cfg.seed,
+        );
+        Ok(summarise(&eps).row(0, 0, &world.name, PERIODIC, cfg.seed))
+    })
+}
+
+impl Summary {
+    /// The summary as a row of `eval.csv`.
+    pub fn row(&self, update: u64, env_steps: u64, world: &str, mode: &str, seed: u64) -> EvalRow {
+        let t = |e: &Estimate| [e.value, e.lo, e.hi];
+        EvalRow {
+            update,
+            env_steps,
+            world: world.to_string(),
+            mode: mode.to_string(),
+            seed,
+            episodes: self.episodes,
+            success: t(&self.success),
+            ret: t(&self.ret),
+            length: t(&self.length),
+            tool_use: t(&self.tool_use),
+        }
+    }
 }
 
 #[cfg(test)]

@@ -21,7 +21,7 @@ use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use fulcrum_empowerment::request::objects_or_default;
-use fulcrum_shared::load_world;
+use fulcrum_shared::{load_world, View};
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]
@@ -40,6 +40,8 @@ pub struct TrainRequest {
     pub gamma_int: Option<f32>,
     /// Whether actions that cannot change anything are masked out.
     pub action_mask: bool,
+    /// What of the map the policy sees.
+    pub view: Option<View>,
     /// Seed of weights, sampling and worlds.
     pub seed: Option<u64>,
     /// Env steps in all.
@@ -70,6 +72,10 @@ pub struct TrainRequest {
     pub max_policy_lag: Option<u64>,
     /// A checkpoint every this many updates.
     pub checkpoint_every: Option<u64>,
+    /// A greedy evaluation every this many updates (0 = never).
+    pub eval_every: Option<u64>,
+    /// Episodes of each periodic evaluation.
+    pub eval_episodes: Option<usize>,
     /// Adam's learning rate.
     pub lr: Option<f64>,
     /// PPO epochs per update.
@@ -169,6 +175,12 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         }
         if let Some(k) = a.checkpoint_every {
             cfg.checkpoint_every = k;
+        }
+        if let Some(k) = a.eval_every {
+            cfg.eval_every = k;
+        }
+        if let Some(n) = a.eval_episodes {
+            cfg.eval_episodes = n;
         }
         if let Some(l) = a.max_policy_lag {
             cfg.max_policy_lag = l;
@@ -284,9 +296,12 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         },
         max_policy_lag: a.max_policy_lag.unwrap_or(0),
         checkpoint_every: a.checkpoint_every.unwrap_or(10),
+        eval_every: a.eval_every.unwrap_or(0),
+        eval_episodes: a.eval_episodes.unwrap_or(10),
         remote: a.remote,
         stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
         action_mask: a.action_mask,
+        view: a.view.unwrap_or_default(),
         intrinsic_value_head: a.intrinsic_value_head,
         gamma_int: a.gamma_int.unwrap_or(0.99),
         ppo: {

@@ -48,7 +48,7 @@ pub fn record(
     };
 
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let spec = w.obs_spec();
+    let spec = cfg.view.spec(w);
     let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut act, mut lp, mut v) = ([0u8], [0.0f32], [0.0f32]);
@@ -62,7 +62,7 @@ pub fn record(
             let s = ep.state;
             let here = value(&s).unwrap_or(0.0);
             frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
-            w.observe(&s, &mut g, &mut f);
+            cfg.view.observe(w, &s, &mut g, &mut f);
             policy.act(&g, &f, &mut rng, &mut act, &mut lp, &mut v);
             let o = w.env_step(&mut ep, act[0]);
             ret += o.reward;
@@ -141,6 +141,9 @@ pub fn load_policy(ckpt: &Path, paths: &RunPaths, cfg: &RunConfig, w: &World) ->
     // The weights, checked against the layout, in the layout's order: the flat vector
     // the policy takes.
     let contents = checkpoint::read(ckpt, &shape.params())?;
+    if let Err(e) = cfg.fits_checkpoint(&contents.extra) {
+        return bad(format!("{}: {e}", ckpt.display()));
+    }
     let flat: Vec<f32> = contents
         .params
         .into_iter()

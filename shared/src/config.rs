@@ -15,6 +15,7 @@ use crate::checkpoint::Extra;
 use crate::intrinsic::Intrinsic;
 use crate::layout::{shape_for, NetShape};
 use crate::ppo_config::PpoConfig;
+use crate::view::View;
 use crate::world::World;
 
 /// The resolved configuration of a run.
@@ -67,6 +68,13 @@ pub struct RunConfig {
     pub max_policy_lag: u64,
     /// Checkpoint every this many updates (and at the end).
     pub checkpoint_every: u64,
+    /// Evaluate the policy greedily every this many updates (and at the end) into
+    /// `eval.csv` and TensorBoard; 0 = never.
+    #[serde(default)]
+    pub eval_every: u64,
+    /// Episodes of each periodic evaluation.
+    #[serde(default = "default_eval_episodes")]
+    pub eval_episodes: usize,
     /// Whether actors on other hosts may join (`train --listen`, feature `multihost`).
     /// Then an update takes one chunk from every local actor and every live remote one,
     /// and the run ends after `total_steps` env steps, whatever the batches were.
@@ -81,6 +89,11 @@ pub struct RunConfig {
     /// existed reads as `false`, the way those runs were trained.
     #[serde(default)]
     pub action_mask: bool,
+    /// What of the map the policy sees (`full`, or `crop:R`, the window of radius R
+    /// around the agent; [`crate::view`]). A configuration written before views existed
+    /// reads as `full`, the way those runs were trained.
+    #[serde(default)]
+    pub view: View,
     /// Two value heads (RND's arrangement): the task reward and the intrinsic reward get
     /// their own value estimates and GAE (the intrinsic one with `gamma_int`), the
     /// intrinsic reward divided by the running standard deviation of the intrinsic
@@ -100,6 +113,10 @@ fn default_intrinsic() -> Intrinsic {
 
 fn default_gamma_int() -> f32 {
     0.99
+}
+
+fn default_eval_episodes() -> usize {
+    10
 }
 
 fn default_stall_timeout() -> f64 {
@@ -190,7 +207,7 @@ impl RunConfig {
     pub fn shape(&self, world: &World) -> NetShape {
         NetShape {
             int_value: self.intrinsic_value_head,
-            ..shape_for(world, self.hidden)
+            ..shape_for(world, self.view, self.hidden)
         }
     }
 
@@ -203,16 +220,33 @@ impl RunConfig {
     }
 
     /// Whether a checkpoint's metadata fits this configuration: the action space (masked
-    /// or not) is part of what the policy learnt, so a checkpoint is never continued
-    /// with the other setting. Checkpoints from before masking carry no mark.
+    /// or not) and the view are part of what the policy learnt, so a checkpoint is never
+    /// continued with another setting. Checkpoints from before masking or views carry
+    /// no mark (and were trained unmasked or with the full view, as their configuration
+    /// files read).
     pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), String> {
-        match extra.meta.get("action_mask") {
-            Some(m) if *m != self.action_mask.to_string() => Err(format!(
-                "the checkpoint was trained with action_mask = {m}, but config.toml says {}",
-                self.action_mask
-            )),
-            _ => Ok(()),
+        for (key, ours) in [
+            ("action_mask", self.action_mask.to_string()),
+            ("view", self.view.to_string()),
+        ] {
+            match extra.meta.get(key) {
+                Some(m) if *m != ours => {
+                    return Err(format!(
+                        "the checkpoint was trained with {key} = {m}, but config.toml says {ours}"
+                    ))
+                }
+                _ => {}
+            }
         }
+        Ok(())
+    }
+
+    /// The marks [`RunConfig::fits_checkpoint`] reads, for a checkpoint's metadata.
+    pub fn checkpoint_marks(&self) -> [(&'static str, String); 2] {
+        [
+            ("action_mask", self.action_mask.to_string()),
+            ("view", self.view.to_string()),
+        ]
     }
 
     /// Env steps per update.
@@ -228,7 +262,14 @@ impl RunConfig {
     /// The first thing wrong with the configuration, as one sentence.
     pub fn check(&self) -> Result<(), String> {
         let b = self.batch();
-        let checks: [(bool, String); 13] = [
+        let checks: [(bool, String); 14] = [
+            (
+                self.eval_episodes == 0 || self.eval_episodes > 100_000,
+                format!(
+                    "{} episodes per evaluation: must be 1 to 100000",
+                    self.eval_episodes
+                ),
+            ),
             (
                 !(self.stall_timeout_s.is_finite() && self.stall_timeout_s > 0.0),
                 format!(
@@ -396,7 +437,10 @@ mod tests {
             remote: false,
             stall_timeout_s: 10.0,
             checkpoint_every: 10,
+            eval_every: 0,
+            eval_episodes: 10,
             action_mask: true,
+            view: View::Full,
             intrinsic_value_head: false,
             gamma_int: 0.99,
             ppo: PpoConfig::default(),
@@ -410,6 +454,7 @@ mod tests {
         let mut text = cfg().to_toml();
         for key in [
             "action_mask",
+            "view",
             "adv_std_floor",
             "lr_anneal",
             "adv_norm_batch",
@@ -423,10 +468,39 @@ mod tests {
         }
         let old: RunConfig = toml::from_str(&text).unwrap();
         assert!(!old.action_mask);
+        assert_eq!(old.view, View::Full);
         assert_eq!(old.ppo.adv_std_floor, 0.0);
         assert!(old.ppo.lr_anneal && !old.ppo.adv_norm_batch);
         assert_eq!((old.ppo.vf_loss_clip, old.ppo.kl_coef), (0.0, 0.0));
         assert_eq!(old.ppo.lr_at(5, 10), 2.5e-4 * 0.5);
+    }
+
+    /// A checkpoint's marks must match the configuration: the mask and the view.
+    #[test]
+    fn checkpoints_are_continued_only_with_their_mask_and_view() {
+        let c = cfg();
+        let mut extra = Extra::default();
+        assert!(
+            c.fits_checkpoint(&extra).is_ok(),
+            "old checkpoints carry no marks"
+        );
+        for (k, v) in c.checkpoint_marks() {
+            extra.meta.insert(k.into(), v);
+        }
+        assert_eq!(extra.meta["view"], "full");
+        assert!(c.fits_checkpoint(&extra).is_ok());
+        let mut crop = c.clone();
+        crop.view = View::Crop(4);
+        let e = crop.fits_checkpoint(&extra).unwrap_err();
+        assert!(
+            e.contains("trained with view = full") && e.contains("crop:4"),
+            "{e}"
+        );
+        let text = crop.to_toml();
+        assert!(text.contains("view = \"crop:4\""), "{text}");
+        assert_eq!(toml::from_str::<RunConfig>(&text).unwrap(), crop);
+        let e = toml::from_str::<RunConfig>(&text.replace("crop:4", "crop:0")).unwrap_err();
+        assert!(e.to_string().contains("unknown view 'crop:0'"), "{e}");
     }
 
     #[test]

@@ -252,7 +252,8 @@ impl World {
         }
     }
 
-    fn observe_flags(&self, s: &State, flags: &mut [u8]) {
+    /// Write the flags of `s` (held tools, the mode one-hot) into `flags` (`2n + 2`).
+    pub fn observe_flags(&self, s: &State, flags: &mut [u8]) {
         let n = self.tools.len();
         flags[..2 * n + 2].fill(0);
         for (k, f) in flags.iter_mut().enumerate().take(n) {

@@ -20,6 +20,7 @@
 //! policy.v_int.b   (1)        only with the intrinsic value head
 //! ```
 
+use crate::view::View;
 use crate::world::World;
 
 /// Sizes of the network.
@@ -140,10 +141,10 @@ impl Offsets {
     }
 }
 
-/// The network's shape for a world (one value head; [`crate::config::RunConfig::shape`]
-/// adds the intrinsic one when the run has it).
-pub fn shape_for(world: &World, hidden: usize) -> NetShape {
-    let spec = world.obs_spec();
+/// The network's shape for a world seen through `view` (one value head;
+/// [`crate::config::RunConfig::shape`] adds the intrinsic one when the run has it).
+pub fn shape_for(world: &World, view: View, hidden: usize) -> NetShape {
+    let spec = view.spec(world);
     NetShape {
         cells: spec.cells(),
         glyphs: spec.glyphs,

@@ -50,6 +50,8 @@ pub mod stop;
 pub mod traj;
 /// Which packed states and episode records belong to a world.
 pub mod valid;
+/// What of the map the learner sees: all of it, or a window around the agent.
+pub mod view;
 /// The world, the rule table and the exact dynamics.
 pub mod world;
 
@@ -58,6 +60,7 @@ pub use env::{Episode, ObsSpec, Outcome};
 pub use ipc_error::IpcError;
 pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
 pub use state::{Mode, State, BOULDER_DESTROYED};
+pub use view::View;
 pub use world::{
     ObjectKind, ObjectSet, Range, Rule, Task, Terrain, ToolChoice, World, APPLY, EAST, NORTH,
     SELECT0, SOUTH, WEST,

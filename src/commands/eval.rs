@@ -2,8 +2,6 @@
 //! world or another of the same shape; prints success, return, length and tool use with
 //! 95% intervals and appends a row to `RUN/eval.csv`.
 
-use std::io::Write as _;
-
 use anyhow::{Context, Result};
 use fulcrum_run::eval::{evaluate, summarise, Estimate};
 use fulcrum_run::{bad, BadRequest};
@@ -11,9 +9,6 @@ use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::load_world;
 
 use crate::cli::EvalArgs;
-
-/// The columns of `eval.csv`.
-const COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi";
 
 /// `fulcrum eval`.
 pub fn run(a: &EvalArgs) -> Result<()> {
@@ -60,31 +55,8 @@ pub fn run(a: &EvalArgs) -> Result<()> {
     println!("return          {}", iv(&s.ret, false));
     println!("episode length  {}", iv(&s.length, false));
     println!("tool use        {}", iv(&s.tool_use, true));
-    let f = |e: &Estimate| format!("{},{},{}", e.value, e.lo, e.hi);
-    let row = format!(
-        "{update},{steps},{},{mode},{seed},{},{},{},{},{}\n",
-        world.name,
-        s.episodes,
-        f(&s.success),
-        f(&s.ret),
-        f(&s.length),
-        f(&s.tool_use)
-    );
-    let path = paths.dir.join("eval.csv");
-    let new = !path.exists();
-    let mut file = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&path)
-        .with_context(|| format!("cannot open {}", path.display()))?;
-    let mut text = String::new();
-    if new {
-        text.push_str(COLUMNS);
-        text.push('\n');
-    }
-    text.push_str(&row);
-    // One write per row: a crash leaves whole rows.
-    file.write_all(text.as_bytes())
+    let path = paths.eval();
+    fulcrum_learner::evalcsv::append(&path, &s.row(update, steps, &world.name, mode, seed))
         .with_context(|| format!("cannot write {}", path.display()))?;
     println!("appended to {}", path.display());
     Ok(())

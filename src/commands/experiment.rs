@@ -7,6 +7,7 @@ use clap::Parser;
 use fulcrum_run::bad;
 use fulcrum_run::experiment::{Arm, ExperimentRequest};
 use fulcrum_run::plan::plan;
+use fulcrum_shared::View;
 
 use crate::cli::{ExperimentArgs, TrainArgs};
 
@@ -84,12 +85,43 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
             });
         }
     }
+    if let Some(views) = &a.views {
+        out = with_views(out, views)?;
+    }
     let mut seen = std::collections::HashSet::new();
     if let Some(d) = out.iter().find(|a| !seen.insert(a.name.clone())) {
         return bad(format!("arm '{}' is named twice", d.name));
     }
     if out.is_empty() {
         return bad("no arms to run: give --arms or --beta-sweep");
+    }
+    Ok(out)
+}
+
+/// Every arm once per view of `views` (comma separated): the full view's keeps the arm's
+/// name and flags, a crop's is `<arm>-crop<R>` with `--view crop:R`.
+fn with_views(arms: Vec<Arm>, views: &str) -> Result<Vec<Arm>> {
+    let mut parsed: Vec<View> = Vec::new();
+    for v in views.split(',').map(str::trim).filter(|s| !s.is_empty()) {
+        match v.parse::<View>() {
+            Ok(v) => parsed.push(v),
+            Err(e) => return bad(format!("--views: {e}")),
+        }
+    }
+    if parsed.is_empty() {
+        return bad("--views names no view: give full, crop:R or both, comma separated");
+    }
+    let mut out = Vec::new();
+    for view in parsed {
+        for arm in &arms {
+            out.push(match view {
+                View::Full => arm.clone(),
+                View::Crop(r) => Arm {
+                    name: format!("{}-crop{r}", arm.name),
+                    args: [&arm.args[..], &["--view".into(), view.to_string()]].concat(),
+                },
+            });
+        }
     }
     Ok(out)
 }

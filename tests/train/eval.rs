@@ -1,6 +1,9 @@
 //! `fulcrum eval`: a trained room policy evaluated greedily reaches the success it
 //! trained to; greedy evaluation is deterministic; sampled evaluation is reproducible by
-//! seed; another world of the same shape is played, one of another shape refused.
+//! seed; another world of the same shape is played, one of another shape refused (a
+//! cropped policy plays worlds of any size with its tools). `train --eval-every`: its
+//! rows come at the asked updates, and the last equals `fulcrum eval` of the final
+//! checkpoint (the learner's weights in memory against the file's).
 
 use std::process::Output;
 
@@ -31,7 +34,18 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
     // room's defaults: the training tests see success 1.0 well within 100k steps.
     let out = fulcrum()
         .args([
-            "train", "room", "--steps", "102400", "--seed", "2", "--out", d,
+            "train",
+            "room",
+            "--steps",
+            "102400",
+            "--seed",
+            "2",
+            "--eval-every",
+            "30",
+            "--eval-episodes",
+            "20",
+            "--out",
+            d,
         ])
         .output()
         .unwrap();
@@ -91,14 +105,68 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
     assert_eq!(bad.status.code(), Some(2), "{err}");
     assert!(err.contains("world 'exp1-tree' (12x8, 4 tools) does not fit the run's policy, which takes worlds of 7x5 with 1 tools"), "{err}");
 
-    // eval.csv: a header and one whole row per evaluation that ran (5 of them).
+    // eval.csv: a header, the periodic rows of updates 30, 60, 90 and the last (100),
+    // then one whole row per evaluation that ran (5 of them).
     let csv = std::fs::read_to_string(dir.join("eval.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines.len(), 1 + 5, "{csv}");
+    assert_eq!(lines.len(), 1 + 4 + 5, "{csv}");
     assert!(lines[0].starts_with("update,env_steps,world,mode,seed,episodes,success"));
+    for (line, (u, steps)) in
+        lines[1..5]
+            .iter()
+            .zip([(30, 30720), (60, 61440), (90, 92160), (100, 102400)])
+    {
+        assert!(
+            line.starts_with(&format!("{u},{steps},room,train-greedy,2,20,")),
+            "{csv}"
+        );
+    }
+    // The last periodic evaluation and `fulcrum eval` of the final checkpoint: the same
+    // policy, the same 20 greedy episodes, the same row but for the mode.
     assert!(
-        lines[1].starts_with("100,102400,room,greedy,2,20,"),
+        lines[5].starts_with("100,102400,room,greedy,2,20,"),
+        "{csv}"
+    );
+    assert_eq!(
+        lines[4].replace("train-greedy", "greedy"),
+        lines[5],
         "{csv}"
     );
     assert!(lines.iter().all(|l| l.split(',').count() == 18), "{csv}");
+}
+
+/// A policy that sees the 5 x 5 window around the agent plays a larger room with the
+/// same tool; a world with other tools is refused, naming the view.
+#[test]
+fn a_cropped_policy_plays_a_world_of_another_size() {
+    let dir = TempDir::fresh("eval-crop");
+    let d = dir.to_str().unwrap();
+    let out = fulcrum()
+        .args([
+            "train", "room", "--view", "crop:2", "--steps", "10240", "--out", d,
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let big = dir.join("big.toml");
+    std::fs::write(
+        &big,
+        "name = \"big\"\nmax_steps = 60\nmap = \"\"\"\n###########\n#@...a...T#\n#.........#\n#.........#\n###########\n\"\"\"\n[tools]\na = \"axe\"\n[task]\nkind = \"destroy\"\nobjects = [\"tree\"]\n",
+    )
+    .unwrap();
+    let o = eval(d, &["--episodes", "3", "--world", big.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("on world 'big'"), "{text}");
+    let bad = eval(d, &["--world", "exp1-tree"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("world 'exp1-tree' (4 tools) does not fit the run's policy, which sees a crop:2 window of worlds with 1 tools"),
+        "{err}"
+    );
 }

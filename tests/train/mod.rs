@@ -281,8 +281,9 @@ fn a_resumed_run_equals_an_uninterrupted_one_bit_for_bit() {
 }
 
 /// The new forms carry state across chunks (first-visit's paid flags, the potential of
-/// each world's state) and the unmasked policy samples other actions: each resumes to the
-/// same bits as a run that never stopped.
+/// each world's state), the unmasked policy samples other actions, and a cropped view
+/// changes the network's input: each resumes to the same bits as a run that never
+/// stopped.
 #[test]
 fn resumes_are_bit_for_bit_with_every_new_option() {
     for (tag, extra) in [
@@ -293,6 +294,9 @@ fn resumes_are_bit_for_bit_with_every_new_option() {
         ("exact-rllib", &["--ppo-preset", "rllib"][..]),
         // Two value heads: the intrinsic rewards' running scale is checkpointed.
         ("exact-2h", &["--intrinsic-value-head", "--beta", "0.1"][..]),
+        // A partial view: the network takes the 5 x 5 window around the agent; and
+        // periodic evaluations, which the resumed run makes again after its checkpoint.
+        ("exact-crop", &["--view", "crop:2", "--eval-every", "2"][..]),
     ] {
         resumed_equals_uninterrupted(tag, extra);
     }
@@ -356,6 +360,14 @@ fn resumed_equals_uninterrupted(tag: &str, extra: &[&str]) {
     };
     let (fa, fb) = (flat(&a), flat(&b));
     assert!(fa.iter().zip(&fb).all(|(x, y)| x.to_bits() == y.to_bits()));
+    // Periodic evaluations (updates 2, 4, 6): the same rows, none twice.
+    let evals = |dir: &Path| std::fs::read_to_string(dir.join("eval.csv")).ok();
+    assert_eq!(evals(&a), evals(&b));
+    if extra.contains(&"--eval-every") {
+        let text = evals(&a).expect("a run with --eval-every wrote no eval.csv");
+        let updates: Vec<&str> = text.lines().skip(1).map(|l| &l[..2]).collect();
+        assert_eq!(updates, ["2,", "4,", "6,"], "{text}");
+    }
     let _ = std::fs::remove_dir_all(&a);
     let _ = std::fs::remove_dir_all(&b);
 }

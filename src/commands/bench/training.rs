@@ -4,35 +4,28 @@
 use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
-use fulcrum_shared::load_world;
+use fulcrum_shared::{load_world, View, World};
 
 use super::{median_ms, Figure};
 
-/// Training pieces: world steps per second on one core (with observation encoding) and
-/// learner samples x epochs per second (one PPO update, CleanRL's defaults).
-pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
-    use rand::{Rng, SeedableRng};
-    let w = load_world("exp1-tree")?;
-    let spec = w.obs_spec();
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
-    let actions: Vec<u8> = (0..4096)
-        .map(|_| rng.random_range(0..w.num_actions() as u8))
-        .collect();
+/// `steps` steps of `w` with `actions` (cycled), the observation in `view` kept up to
+/// date: the seconds taken and the episodes finished.
+fn world_steps(w: &World, view: View, actions: &[u8], steps: usize) -> Result<(f64, u64)> {
+    let spec = view.spec(w);
     let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
-    let steps = if quick { 2_000_000 } else { 20_000_000 };
     let mut ep = w.reset();
-    w.observe(&ep.state, &mut g, &mut f);
+    view.observe(w, &ep.state, &mut g, &mut f);
     let mut done = 0u64;
     let t0 = Instant::now();
     for i in 0..steps {
         let prev = ep.state;
         let out = w.env_step(&mut ep, actions[i % actions.len()]);
-        w.observe_update(&prev, &ep.state, &mut g, &mut f);
+        view.update(w, &prev, &ep.state, &mut g, &mut f);
         if out.terminated || out.truncated {
             done += 1;
             let last = ep.state;
             ep = w.reset();
-            w.observe_update(&last, &ep.state, &mut g, &mut f);
+            view.update(w, &last, &ep.state, &mut g, &mut f);
         }
     }
     let secs = t0.elapsed().as_secs_f64();
@@ -40,6 +33,20 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
         done > 0 && g.iter().any(|&x| x != 0),
         "the world did not run"
     );
+    Ok((secs, done))
+}
+
+/// Training pieces: world steps per second on one core (with observation encoding) and
+/// learner samples x epochs per second (one PPO update, CleanRL's defaults).
+pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use rand::{Rng, SeedableRng};
+    let w = load_world("exp1-tree")?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1);
+    let actions: Vec<u8> = (0..4096)
+        .map(|_| rng.random_range(0..w.num_actions() as u8))
+        .collect();
+    let steps = if quick { 2_000_000 } else { 20_000_000 };
+    let (secs, done) = world_steps(&w, View::Full, &actions, steps)?;
     figs.push(Figure {
         zero_ok: false,
         name: "world steps/s, one core, with observation".into(),
@@ -49,8 +56,19 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
             "(exp1-tree, random actions, {done} episodes, incremental observation; goal >= 20M)"
         ),
     });
+    let (secs, done) = world_steps(&w, View::Crop(4), &actions, steps)?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "world steps/s, one core, with the crop:4 observation".into(),
+        value: steps as f64 / secs,
+        unit: "steps/s",
+        note: format!(
+            "(exp1-tree, the same actions, {done} episodes, the 9x9 window around the agent redrawn when it changes)"
+        ),
+    });
     // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
-    let shape = fulcrum_shared::layout::shape_for(&w, 64);
+    let shape = fulcrum_shared::layout::shape_for(&w, View::Full, 64);
+    let spec = w.obs_spec();
     let net = fulcrum_learner::net::Net::new(shape, 1, &candle_core::Device::Cpu)?;
     let mut adam = fulcrum_learner::adam::Adam::new(&net)?;
     let n = 1024;

@@ -1,0 +1,207 @@
+//! `eval.csv`: evaluations of a run's policy, one row per evaluation, appended by
+//! `fulcrum eval` and, every `eval_every` updates, by the learner of
+//! `train --eval-every` (mode `train-greedy`, [`PERIODIC`](crate::evalcsv::PERIODIC):
+//! greedy actions, during training).
+//!
+//! Columns ([`EVAL_COLUMNS`](crate::evalcsv::EVAL_COLUMNS)): the policy's update and
+//! env steps, the world played, the mode (`greedy`, `sample` or `train-greedy`), the
+//! sampling seed, the episodes, then success rate, mean return, mean length and
+//! tool-use rate, each followed by its 95% interval's ends. A resumed run drops the
+//! periodic rows after its checkpoint (it makes them again) and keeps every row
+//! `fulcrum eval` wrote.
+
+use std::io::Write as _;
+use std::path::Path;
+
+/// The header of `eval.csv`.
+pub const EVAL_COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi";
+
+/// The mode of the rows `train --eval-every` writes: greedy actions, during training.
+pub const PERIODIC: &str = "train-greedy";
+
+/// One evaluation.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalRow {
+    /// The policy's update.
+    pub update: u64,
+    /// Env steps of training behind the policy.
+    pub env_steps: u64,
+    /// The world played.
+    pub world: String,
+    /// `greedy`, `sample` or [`PERIODIC`].
+    pub mode: String,
+    /// The sampling seed.
+    pub seed: u64,
+    /// Episodes played.
+    pub episodes: usize,
+    /// Success rate, and its 95% interval (Wilson).
+    pub success: [f64; 3],
+    /// Mean return, and its 95% interval (Student's t).
+    pub ret: [f64; 3],
+    /// Mean episode length, and its 95% interval.
+    pub length: [f64; 3],
+    /// Tool-use rate, and its 95% interval (Wilson).
+    pub tool_use: [f64; 3],
+}
+
+impl EvalRow {
+    /// The row as CSV (no newline).
+    pub fn csv(&self) -> String {
+        let f = |v: &[f64; 3]| format!("{},{},{}", v[0], v[1], v[2]);
+        format!(
+            "{},{},{},{},{},{},{},{},{},{}",
+            self.update,
+            self.env_steps,
+            self.world,
+            self.mode,
+            self.seed,
+            self.episodes,
+            f(&self.success),
+            f(&self.ret),
+            f(&self.length),
+            f(&self.tool_use)
+        )
+    }
+
+    /// A row of the file; `None` for the header or a torn line.
+    pub fn parse(line: &str) -> Option<EvalRow> {
+        let v: Vec<&str> = line.split(',').collect();
+        if v.len() != 18 {
+            return None;
+        }
+        let x = |i: usize| v[i].parse::<f64>().ok();
+        let three = |i: usize| Some([x(i)?, x(i + 1)?, x(i + 2)?]);
+        Some(EvalRow {
+            update: v[0].parse().ok()?,
+            env_steps: v[1].parse().ok()?,
+            world: v[2].to_string(),
+            mode: v[3].to_string(),
+            seed: v[4].parse().ok()?,
+            episodes: v[5].parse().ok()?,
+            success: three(6)?,
+            ret: three(9)?,
+            length: three(12)?,
+            tool_use: three(15)?,
+        })
+    }
+
+    /// TensorBoard's scalars of a periodic evaluation (the point estimates).
+    pub fn scalars(&self) -> [(&'static str, f64); 4] {
+        [
+            ("eval/success_rate", self.success[0]),
+            ("eval/return", self.ret[0]),
+            ("eval/episode_length", self.length[0]),
+            ("eval/tool_use", self.tool_use[0]),
+        ]
+    }
+}
+
+/// Append `row` to `path` (with the header when the file is new), in one write: a crash
+/// leaves whole rows.
+pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
+    let new = !path.exists();
+    let mut file = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(path)?;
+    let mut text = String::new();
+    if new {
+        text.push_str(EVAL_COLUMNS);
+        text.push('\n');
+    }
+    text.push_str(&row.csv());
+    text.push('\n');
+    file.write_all(text.as_bytes())
+}
+
+/// The rows of `path` (none when it does not exist; torn lines skipped).
+pub fn read(path: &Path) -> std::io::Result<Vec<EvalRow>> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok(text.lines().filter_map(EvalRow::parse).collect()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Vec::new()),
+        Err(e) => Err(e),
+    }
+}
+
+/// Drop the periodic rows of updates after `update` (and torn lines), keeping every
+/// other row, atomically; returns the periodic rows kept, for TensorBoard.
+pub fn trim_periodic(path: &Path, update: u64) -> std::io::Result<Vec<EvalRow>> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(Vec::new());
+    };
+    let mut out = String::from(EVAL_COLUMNS);
+    out.push('\n');
+    let mut kept = Vec::new();
+    for row in text.lines().filter_map(EvalRow::parse) {
+        let periodic = row.mode == PERIODIC;
+        if periodic && row.update > update {
+            continue;
+        }
+        out.push_str(&row.csv());
+        out.push('\n');
+        if periodic {
+            kept.push(row);
+        }
+    }
+    if out != text {
+        fulcrum_shared::fsio::write_atomic(path, out.as_bytes())?;
+    }
+    Ok(kept)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(update: u64, mode: &str) -> EvalRow {
+        EvalRow {
+            update,
+            env_steps: update * 1024,
+            world: "room".into(),
+            mode: mode.into(),
+            seed: 1,
+            episodes: 10,
+            success: [0.7, 0.3967781, 0.8922087],
+            ret: [0.7, 0.35, 1.05],
+            length: [12.5, 10.0, 15.0],
+            tool_use: [1.0, 0.72, 1.0],
+        }
+    }
+
+    #[test]
+    fn rows_round_trip_and_a_resume_drops_only_later_periodic_rows() {
+        let dir = std::env::temp_dir().join(format!("fulcrum-evalcsv-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("eval.csv");
+        let rows = [
+            row(2, PERIODIC),
+            row(3, "greedy"),
+            row(4, PERIODIC),
+            row(6, PERIODIC),
+            row(9, "sample"),
+        ];
+        for r in &rows {
+            append(&path, r).unwrap();
+        }
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert_eq!(text.lines().next(), Some(EVAL_COLUMNS));
+        assert_eq!(text.lines().count(), 6);
+        assert_eq!(read(&path).unwrap(), rows);
+        // A torn last line (a crash mid-write) is dropped with the later periodic rows.
+        std::fs::write(&path, format!("{text}5,5120,room,train-gr")).unwrap();
+        let kept = trim_periodic(&path, 4).unwrap();
+        assert_eq!(kept, vec![rows[0].clone(), rows[2].clone()]);
+        assert_eq!(
+            read(&path).unwrap(),
+            vec![
+                rows[0].clone(),
+                rows[1].clone(),
+                rows[2].clone(),
+                rows[4].clone()
+            ]
+        );
+        assert_eq!(rows[0].scalars()[0], ("eval/success_rate", 0.7));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
