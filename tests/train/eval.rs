@@ -27,33 +27,50 @@ fn figure(out: &str, label: &str) -> f64 {
         .unwrap()
 }
 
-#[test]
-fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
-    let dir = TempDir::fresh("eval");
-    let d = dir.to_str().unwrap();
-    // room's defaults: the training tests see success 1.0 well within 100k steps.
-    let out = fulcrum()
-        .args([
-            "train",
-            "room",
-            "--steps",
-            "102400",
-            "--seed",
-            "2",
-            "--eval-every",
-            "30",
-            "--eval-episodes",
-            "20",
-            "--out",
-            d,
-        ])
-        .output()
-        .unwrap();
+/// `fulcrum train ARGS`, which must succeed.
+fn train_ok(args: &[&str]) {
+    let out = fulcrum().arg("train").args(args).output().unwrap();
     assert!(
         out.status.success(),
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
+}
+
+/// The run in `run` is played on the world file `world` (named `name`), and refused on
+/// exp1-tree with `refusal` (exit 2).
+fn plays_one_and_refuses_exp1_tree(run: &str, world: &std::path::Path, name: &str, refusal: &str) {
+    let o = eval(
+        run,
+        &["--episodes", "3", "--world", world.to_str().unwrap()],
+    );
+    let text = String::from_utf8_lossy(&o.stdout).to_string();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains(&format!("on world '{name}'")), "{text}");
+    let bad = eval(run, &["--world", "exp1-tree"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(err.contains(refusal), "{err}");
+}
+
+#[test]
+fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
+    let dir = TempDir::fresh("eval");
+    let d = dir.to_str().unwrap();
+    // room's defaults: the training tests see success 1.0 well within 100k steps.
+    train_ok(&[
+        "room",
+        "--steps",
+        "102400",
+        "--seed",
+        "2",
+        "--eval-every",
+        "30",
+        "--eval-episodes",
+        "20",
+        "--out",
+        d,
+    ]);
     let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv")).unwrap();
     let trained = rows.last().unwrap().success_rate;
     assert!(trained >= 0.9, "training ended at success {trained}");
@@ -96,14 +113,12 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
             .replace("#@a..T#\n#.....#", "#@a...#\n#....T#"),
     )
     .unwrap();
-    let o = eval(d, &["--episodes", "5", "--world", other.to_str().unwrap()]);
-    let ot = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(ot.contains("on world 'room-moved'"), "{ot}");
-    let bad = eval(d, &["--world", "exp1-tree"]);
-    let err = String::from_utf8_lossy(&bad.stderr);
-    assert_eq!(bad.status.code(), Some(2), "{err}");
-    assert!(err.contains("world 'exp1-tree' (12x8, 4 tools) does not fit the run's policy, which takes worlds of 7x5 with 1 tools"), "{err}");
+    plays_one_and_refuses_exp1_tree(
+        d,
+        &other,
+        "room-moved",
+        "world 'exp1-tree' (12x8, 4 tools) does not fit the run's policy, which takes worlds of 7x5 with 1 tools",
+    );
 
     // eval.csv: a header, the periodic rows of updates 30, 60, 90 and the last (100),
     // then one whole row per evaluation that ran (5 of them).
@@ -141,32 +156,17 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
 fn a_cropped_policy_plays_a_world_of_another_size() {
     let dir = TempDir::fresh("eval-crop");
     let d = dir.to_str().unwrap();
-    let out = fulcrum()
-        .args([
-            "train", "room", "--view", "crop:2", "--steps", "10240", "--out", d,
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    train_ok(&["room", "--view", "crop:2", "--steps", "10240", "--out", d]);
     let big = dir.join("big.toml");
     std::fs::write(
         &big,
         "name = \"big\"\nmax_steps = 60\nmap = \"\"\"\n###########\n#@...a...T#\n#.........#\n#.........#\n###########\n\"\"\"\n[tools]\na = \"axe\"\n[task]\nkind = \"destroy\"\nobjects = [\"tree\"]\n",
     )
     .unwrap();
-    let o = eval(d, &["--episodes", "3", "--world", big.to_str().unwrap()]);
-    let text = String::from_utf8_lossy(&o.stdout).to_string();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(text.contains("on world 'big'"), "{text}");
-    let bad = eval(d, &["--world", "exp1-tree"]);
-    let err = String::from_utf8_lossy(&bad.stderr);
-    assert_eq!(bad.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("world 'exp1-tree' (4 tools) does not fit the run's policy, which sees a crop:2 window of worlds with 1 tools"),
-        "{err}"
+    plays_one_and_refuses_exp1_tree(
+        d,
+        &big,
+        "big",
+        "world 'exp1-tree' (4 tools) does not fit the run's policy, which sees a crop:2 window of worlds with 1 tools",
     );
 }
