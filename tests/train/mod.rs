@@ -430,6 +430,26 @@ fn bad_training_settings_are_refused_before_anything_starts() {
             ],
             "gamma_int 1.5",
         ),
+        (
+            vec!["room", "--view", "crop:0", "--out", d],
+            "--view: unknown view 'crop:0' (views: full, or crop:R",
+        ),
+        (
+            vec!["room", "--view", "window", "--out", d],
+            "--view: unknown view 'window'",
+        ),
+        (
+            vec![
+                "room",
+                "--eval-every",
+                "2",
+                "--eval-episodes",
+                "0",
+                "--out",
+                d,
+            ],
+            "0 episodes per evaluation",
+        ),
     ] {
         let (s, err, _) = finish(train(&args), Duration::from_secs(30));
         assert_eq!(s.code(), Some(2), "{args:?}: {err}");
@@ -969,7 +989,8 @@ fn a_damaged_checkpoint_is_refused_on_resume_before_anything_starts() {
 }
 
 /// The action mask is recorded in the checkpoint: a config.toml edited to the other
-/// setting is refused on --resume before anything starts (exit 2, one sentence).
+/// setting is refused on --resume before anything starts (exit 2, one sentence); so
+/// are flags that would change the policy's settings (the view, the seed).
 #[test]
 fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
     let dir = TempDir::fresh("mask-flip");
@@ -985,9 +1006,20 @@ fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
         Duration::from_secs(120),
     );
     assert!(s.success(), "{err}");
+    // Flags that would change what the policy learns are refused on --resume, named.
+    let (s, err, _) = finish(
+        train(&["--resume", d, "--view", "crop:2", "--seed", "3"]),
+        Duration::from_secs(60),
+    );
+    assert_eq!(s.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--view, --seed cannot be changed (start a new run instead)"),
+        "{err}"
+    );
     let cfg = dir.join("config.toml");
     let text = std::fs::read_to_string(&cfg).unwrap();
     assert!(text.contains("action_mask = true"), "{text}");
+    assert!(text.contains("view = \"full\""), "{text}");
     std::fs::write(
         &cfg,
         text.replace("action_mask = true", "action_mask = false"),
