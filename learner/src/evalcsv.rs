@@ -96,8 +96,8 @@ impl EvalRow {
     }
 }
 
-/// Append `row` to `path` (with the header when the file is new), in one write: a crash
-/// leaves whole rows.
+/// Append `row` to `path` (with the header when the file is new), in one write, synced
+/// (the learner's checkpoint after it must not outlive it): a crash leaves whole rows.
 pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
     let new = !path.exists();
     let mut file = std::fs::OpenOptions::new()
@@ -111,7 +111,8 @@ pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
     }
     text.push_str(&row.csv());
     text.push('\n');
-    file.write_all(text.as_bytes())
+    file.write_all(text.as_bytes())?;
+    file.sync_data()
 }
 
 /// The rows of `path` (none when it does not exist; torn lines skipped).
