@@ -57,7 +57,7 @@ if [[ "$mode" != pictures || -d experiments/masked/exp2 ]]; then
   done
 fi
 # A partial view: the baseline and horizon-potential with the full map and with the 9x9
-# window around the agent (train --view crop:4), 10 seeds, on exp1-tree and exp2.
+# window around the agent (train --view crop:4), 10 seeds, on the four worlds.
 view() {
   local world=$1 steps=$2
   local cmd=($f experiment "$world" --seeds 10 --steps "$steps" --arms baseline,horizon-potential
@@ -68,7 +68,9 @@ view() {
 }
 if [[ "$mode" != pictures || -d experiments/view/exp2 ]]; then
   view exp1-tree 499712
+  view exp1-wall 499712
   view exp2 2998272
+  view exp3 2998272
   python3 scripts/view_tables.py > "$out/view-tables.md"
 fi
 # The paper's unmasked setting, measured before masking and the advantage floor existed:

@@ -134,6 +134,11 @@ pub struct ServeArgs {
     /// Memory for cached ad-hoc query tables, in MiB.
     #[arg(long, default_value_t = 256)]
     pub cache_mib: usize,
+    /// Clients the service takes at once. Its shared memory grows with them (about
+    /// 1.2 MiB a client); `fulcrum train` makes its service for its own actors and 8
+    /// more.
+    #[arg(long, default_value_t = fulcrum_shared::msg::MAX_CLIENTS)]
+    pub max_clients: usize,
 }
 
 /// `fulcrum world ...`

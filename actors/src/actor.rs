@@ -101,11 +101,12 @@ struct Ports {
 
 impl Ports {
     /// The ports of the run in `namespace`, for chunks of `bytes` bytes, and the weights'
-    /// subscriber and wake-up listener. Sending blocks while the learner's queue is full
-    /// (until `stop`).
+    /// subscriber and wake-up listener (the weights service made for `subscribers`).
+    /// Sending blocks while the learner's queue is full (until `stop`).
     fn open(
         namespace: &str,
         bytes: usize,
+        subscribers: usize,
         stop: &'static AtomicBool,
     ) -> Result<(Ports, WeightsSubscriber, Listener<ipc::Service>), ActorError> {
         let node = NodeBuilder::new()
@@ -139,7 +140,7 @@ impl Ports {
             .notifier_builder()
             .create()
             .map_err(|e| IpcError::new("notifier", e))?;
-        let psvc = traj::policy_service(&node, &names).map_err(ActorError::from)?;
+        let psvc = traj::policy_service(&node, &names, subscribers).map_err(ActorError::from)?;
         let sub = psvc
             .subscriber_builder()
             .create()
@@ -254,7 +255,14 @@ impl<'a> Actor<'a> {
         let run = run_tag.unwrap_or_else(|| traj::run_tag(namespace));
         let world_hash = world.content_hash();
 
-        let (ports, sub, listener) = Ports::open(namespace, layout.bytes(), stop)?;
+        // An actor on another host (a run tag given) shares its host's weights service
+        // with the bridge, which makes it for the most actors a host may have.
+        let subscribers = if run_tag.is_some() {
+            traj::WEIGHTS_SUBSCRIBERS
+        } else {
+            cfg.weights_subscribers()
+        };
+        let (ports, sub, listener) = Ports::open(namespace, layout.bytes(), subscribers, stop)?;
 
         let form = cfg.form();
         let ask = if form == Intrinsic::Count {

@@ -96,10 +96,18 @@ pub fn connect(
     let result = if cfg.empowerment {
         let mut fwd = Forwarder::new(&session, &run, &world, stats.clone(), give_up)?;
         let line = joined.line();
-        let r = service::serve_with(&mut fwd, &local_ns, Duration::from_micros(50), |_| {
-            println!("{line}");
-            let _ = std::io::stdout().flush();
-        });
+        // This host's actors, whatever their number: the most a service takes.
+        let clients = fulcrum_shared::msg::MAX_CLIENTS;
+        let r = service::serve_with(
+            &mut fwd,
+            &local_ns,
+            Duration::from_micros(50),
+            clients,
+            |_| {
+                println!("{line}");
+                let _ = std::io::stdout().flush();
+            },
+        );
         r.map(|_| ()).map_err(anyhow::Error::from)
     } else {
         println!("{}", joined.line());
@@ -264,7 +272,8 @@ fn weights_in(
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let psvc = traj::policy_service(&node, &names)?;
+        // Across hosts, every host's weights service is made for the most actors.
+        let psvc = traj::policy_service(&node, &names, traj::WEIGHTS_SUBSCRIBERS)?;
         let publisher = psvc
             .publisher_builder()
             .initial_max_slice_len(1 << 12)

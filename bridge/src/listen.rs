@@ -245,7 +245,8 @@ fn weights_out(
     Ok(std::thread::spawn(move || -> Result<()> {
         let node = node()?;
         let names = TrainNames::new(&ns);
-        let psvc = traj::policy_service(&node, &names)?;
+        // Across hosts, every host's weights service is made for the most actors.
+        let psvc = traj::policy_service(&node, &names, traj::WEIGHTS_SUBSCRIBERS)?;
         let sub = psvc
             .subscriber_builder()
             .create()

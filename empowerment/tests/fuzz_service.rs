@@ -36,6 +36,7 @@ proptest! {
             horizon_equipped: 3,
             cache_bytes: 16 << 20,
             spin: Duration::ZERO,
+            max_clients: fulcrum_shared::msg::MAX_CLIENTS,
         }).unwrap();
         let mut req: Box<EmpRequest> = zeroed();
         req.world_hash = if right_world { w.content_hash() } else { 42 };

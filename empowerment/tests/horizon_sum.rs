@@ -28,6 +28,7 @@ fn tables(horizon_sum: bool) -> (fulcrum_shared::World, ServeConfig) {
         horizon_sum,
         cache_bytes: 1 << 20,
         spin: Duration::ZERO,
+        max_clients: fulcrum_shared::msg::MAX_CLIENTS,
     };
     (w, cfg)
 }

@@ -138,8 +138,9 @@ struct Ports {
 }
 
 impl Ports {
-    /// The ports of the run in `namespace`, for weights of `weights` floats.
-    fn open(namespace: &str, weights: usize) -> Result<Ports, LearnerError> {
+    /// The ports of the run in `namespace`, for weights of `weights` floats and
+    /// `subscribers` subscribers of them.
+    fn open(namespace: &str, weights: usize, subscribers: usize) -> Result<Ports, LearnerError> {
         let node = NodeBuilder::new()
             .signal_handling_mode(SignalHandlingMode::Disabled)
             .create::<ipc::Service>()
@@ -156,7 +157,7 @@ impl Ports {
             .listener_builder()
             .create()
             .map_err(|e| IpcError::new("listener", e))?;
-        let psvc = traj::policy_service(&node, &names).map_err(LearnerError::from)?;
+        let psvc = traj::policy_service(&node, &names, subscribers).map_err(LearnerError::from)?;
         let publisher = psvc
             .publisher_builder()
             .initial_max_slice_len(weights)
@@ -312,7 +313,7 @@ impl<'a> Learner<'a> {
             flags: shape.flags,
         };
         let (run, world_hash) = (traj::run_tag(namespace), world.content_hash());
-        let ports = Ports::open(namespace, net.len())?;
+        let ports = Ports::open(namespace, net.len(), cfg.weights_subscribers())?;
         ports.publish(&net, run, world_hash, ctr.update)?;
         let metrics = open_metrics(&paths.metrics())?;
         // Periodic evaluations after the checkpoint are made again.

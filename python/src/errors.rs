@@ -38,6 +38,12 @@ create_exception!(
 );
 create_exception!(
     fulcrum,
+    ServiceFull,
+    ServiceError,
+    "The service has as many clients as it takes (`fulcrum serve --max-clients`)."
+);
+create_exception!(
+    fulcrum,
     ServiceGone,
     ServiceError,
     "The service went away with requests in flight."
@@ -62,6 +68,7 @@ pub fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("NoService", py.get_type::<NoService>())?;
     m.add("WrongWorld", py.get_type::<WrongWorld>())?;
     m.add("ServiceTimeout", py.get_type::<ServiceTimeout>())?;
+    m.add("ServiceFull", py.get_type::<ServiceFull>())?;
     m.add("ServiceGone", py.get_type::<ServiceGone>())?;
     m.add("Refused", py.get_type::<Refused>())?;
     m.add("TransportError", py.get_type::<TransportError>())?;
@@ -107,6 +114,7 @@ impl<T> IntoPy<T> for Result<T, ClientError> {
                 ClientError::Timeout(_) => ServiceTimeout::new_err(msg),
                 ClientError::ServiceGone => ServiceGone::new_err(msg),
                 ClientError::Refused(_) => Refused::new_err(msg),
+                ClientError::Full { .. } => ServiceFull::new_err(msg),
                 ClientError::Ipc(_) | ClientError::Transport { .. } => TransportError::new_err(msg),
             }
         })

@@ -13,7 +13,9 @@
 //! A run has K actor publishers of chunks (`envs x steps` transitions each, [`ChunkLayout`])
 //! and one publisher of the weights (every parameter as f32), configured in
 //! [`fulcrum_shared::traj`]. With empowerment, the service's server holds
-//! `max_clients x 2 x in_flight x (response buffer + borrowed + loaned)` responses and
+//! `max_clients x 2 x in_flight x (response buffer + borrowed + loaned)` responses (a
+//! run's service takes its actors and a few more, `RunConfig::service_clients`; the
+//! weights' subscribers are its actors and a few more too) and
 //! each actor's client `max_servers x 2 x in_flight + loaned` requests
 //! (`required_amount_of_chunks_per_{server,client}_data_segment`), configured in
 //! `fulcrum_empowerment::service`; the event services and the management segments add
@@ -26,10 +28,10 @@
 use std::path::Path;
 
 use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::msg::{EmpRequest, EmpResponse, MAX_CLIENTS, MAX_IN_FLIGHT};
+use fulcrum_shared::msg::{EmpRequest, EmpResponse, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{
     ChunkHeader, ChunkLayout, WeightsHeader, CHUNKS_LOANED, CHUNK_QUEUE, CHUNK_SUBSCRIBERS,
-    WEIGHTS_BUFFER, WEIGHTS_LOANED, WEIGHTS_SUBSCRIBERS,
+    WEIGHTS_BUFFER, WEIGHTS_LOANED,
 };
 use fulcrum_shared::World;
 
@@ -48,8 +50,9 @@ const SAMPLE_OVERHEAD: u64 = 128;
 
 /// The shared memory of a run that does not depend on its settings: the event
 /// services, the connections between ports and iceoryx2's management segments
-/// (measured: about 0.6 MiB for a run of one actor), rounded up.
-pub const FIXED_BYTES: u64 = 4 << 20;
+/// (measured: about 0.1 MiB for an exp2 run of two actors, in a `/dev/shm` of its own),
+/// rounded up.
+pub const FIXED_BYTES: u64 = 1 << 20;
 
 /// The empowerment service's request-response settings (`fulcrum_empowerment`'s
 /// `rr_service`): servers, and iceoryx2's defaults for borrowed and loaned responses.
@@ -105,9 +108,10 @@ pub fn shared_memory(cfg: &RunConfig, w: &World) -> SharedMemory {
         .sum();
     let weights_sample = 4 * floats + std::mem::size_of::<WeightsHeader>() as u64 + SAMPLE_OVERHEAD;
     // Subscribers x (queued + borrowed, both WEIGHTS_BUFFER) + a history of 1 + loaned.
-    let weights_samples = (WEIGHTS_SUBSCRIBERS * 2 * WEIGHTS_BUFFER + 1 + WEIGHTS_LOANED) as u64;
+    let subscribers = cfg.weights_subscribers();
+    let weights_samples = (subscribers * 2 * WEIGHTS_BUFFER + 1 + WEIGHTS_LOANED) as u64;
     let service = if cfg.empowerment {
-        let (clients, in_flight) = (MAX_CLIENTS as u64, MAX_IN_FLIGHT as u64);
+        let (clients, in_flight) = (cfg.service_clients() as u64, MAX_IN_FLIGHT as u64);
         let response = std::mem::size_of::<EmpResponse>() as u64 + SAMPLE_OVERHEAD;
         // Requests carry a u128 user header (the client's id).
         let request = std::mem::size_of::<EmpRequest>() as u64 + 16 + SAMPLE_OVERHEAD;

@@ -219,6 +219,8 @@ impl Supervisor {
             self.cfg.horizon_unequipped.to_string(),
             "--horizon-equipped".into(),
             self.cfg.horizon_equipped.to_string(),
+            "--max-clients".into(),
+            self.cfg.service_clients().to_string(),
         ];
         if let Some(t) = self.cfg.tool.as_request() {
             args.extend(["--tool".into(), t.to_string()]);
@@ -551,6 +553,9 @@ impl Supervisor {
                     self.opts.restarts.max,
                     self.opts.restarts.window.as_secs_f64()
                 ));
+                // The dead actor's ports hold places in services made for the run's
+                // actors and a few spares: free them before its successor comes.
+                fulcrum_empowerment::service::clean_dead_nodes();
                 let inc = self.actors[i].1;
                 self.start_actor(i, inc + 1)
             }

@@ -249,6 +249,29 @@ impl RunConfig {
         ]
     }
 
+    /// Subscribers the run's weights service is made for: its actors and
+    /// [`crate::traj::SPARE_SUBSCRIBERS`]; a run across hosts, whose hosts each have
+    /// their own number of actors, keeps [`crate::traj::WEIGHTS_SUBSCRIBERS`].
+    pub fn weights_subscribers(&self) -> usize {
+        if self.remote {
+            crate::traj::WEIGHTS_SUBSCRIBERS
+        } else {
+            self.actors + crate::traj::SPARE_SUBSCRIBERS
+        }
+    }
+
+    /// Clients the run's empowerment service is made for: its actors and
+    /// [`crate::msg::SPARE_CLIENTS`] (restarted actors, and clients from outside the run
+    /// such as `empowerment query --service`); a run across hosts keeps
+    /// [`crate::msg::MAX_CLIENTS`].
+    pub fn service_clients(&self) -> usize {
+        if self.remote {
+            crate::msg::MAX_CLIENTS
+        } else {
+            self.actors + crate::msg::SPARE_CLIENTS
+        }
+    }
+
     /// Env steps per update.
     pub fn batch(&self) -> usize {
         self.actors * self.envs_per_actor * self.steps_per_chunk

@@ -254,8 +254,15 @@ impl Names {
     }
 }
 
-/// Clients a service takes at once (actors, CLI users, benchmarks).
+/// Clients a service takes at once by default (`fulcrum serve --max-clients`; actors,
+/// CLI users, benchmarks). The server's memory grows with it: it holds
+/// `clients x 2 x MAX_IN_FLIGHT x (MAX_IN_FLIGHT + 4)` responses of about 5 KiB, 75 MiB
+/// for 64 clients, so a training run makes its service for its own actors
+/// ([`crate::config::RunConfig::service_clients`]).
 pub const MAX_CLIENTS: usize = 64;
+/// Clients beyond its actors a training run's service takes: restarted actors whose
+/// predecessor's port is not yet cleaned up, and clients from outside the run.
+pub const SPARE_CLIENTS: usize = 8;
 /// Requests one client may have in flight (pipelining depth).
 pub const MAX_IN_FLIGHT: usize = 8;
 

@@ -67,9 +67,15 @@ pub fn host_of(actor: u32) -> u32 {
 pub const CHUNK_QUEUE: usize = 4;
 /// Subscribers of the trajectory service (the learner, and one spare).
 pub const CHUNK_SUBSCRIBERS: usize = 2;
-/// Subscribers of the weights service: every local actor, the bridge, and spares for
-/// actors restarted while their predecessor's port is not yet cleaned up.
+/// Subscribers of the weights service of a run with actors on other hosts (whose
+/// counts differ from host to host): every local actor the run may have, the bridge,
+/// and spares for actors restarted while their predecessor's port is not yet cleaned
+/// up. A run on one host makes it for its own actors
+/// ([`crate::config::RunConfig::weights_subscribers`]).
 pub const WEIGHTS_SUBSCRIBERS: usize = MAX_ACTORS + 4;
+/// Spare weights subscribers of a run on one host: actors restarted while their
+/// predecessor's port is not yet cleaned up.
+pub const SPARE_SUBSCRIBERS: usize = 4;
 /// Weights a subscriber keeps queued, and borrows at a time: one each, since an actor
 /// only wants the newest weights (safe overflow replaces older ones) and reads one
 /// sample at a time. iceoryx2 keeps `subscribers x (queued + borrowed) + history +
@@ -578,16 +584,21 @@ pub fn trajectory_service(
         .map_err(|e| IpcError::new("trajectory service", e))
 }
 
-/// The weights service (history 1: late subscribers get the current weights).
+/// The weights service (history 1: late subscribers get the current weights), made for
+/// `subscribers` subscribers: every process of a host passes the same number
+/// ([`crate::config::RunConfig::weights_subscribers`], or [`WEIGHTS_SUBSCRIBERS`] on a
+/// run across hosts), since the first to come creates the service and the publisher's
+/// memory grows with it (`2 x subscribers + 2` samples of all the weights).
 pub fn policy_service(
     node: &Node<ipc::Service>,
     n: &TrainNames,
+    subscribers: usize,
 ) -> Result<PolicyFactory, IpcError> {
     node.service_builder(&name(&n.policy)?)
         .publish_subscribe::<[f32]>()
         .user_header::<WeightsHeader>()
         .max_publishers(2)
-        .max_subscribers(WEIGHTS_SUBSCRIBERS)
+        .max_subscribers(subscribers)
         .max_nodes(MAX_ACTORS + 8)
         .subscriber_max_buffer_size(WEIGHTS_BUFFER)
         .subscriber_max_borrowed_samples(WEIGHTS_BUFFER)

@@ -13,12 +13,21 @@ use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 use fulcrum_run::bad;
 use fulcrum_shared::load_world as world;
 
+/// The most clients `--max-clients` may ask for (about 1.2 GiB of shared memory).
+const MAX_SERVE_CLIENTS: usize = 1024;
+
 /// Run the service until SIGINT or SIGTERM.
 pub fn run(a: &ServeArgs) -> Result<()> {
     if !msg::valid_namespace(&a.namespace) {
         return bad(format!(
             "--namespace '{}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'",
             a.namespace
+        ));
+    }
+    if !(1..=MAX_SERVE_CLIENTS).contains(&a.max_clients) {
+        return bad(format!(
+            "--max-clients {} must be 1 to {MAX_SERVE_CLIENTS}",
+            a.max_clients
         ));
     }
     let w = world(&a.world)?;
@@ -64,6 +73,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
         horizon_equipped: he,
         cache_bytes: a.cache_mib << 20,
         spin: Duration::from_micros(100),
+        max_clients: a.max_clients,
     };
     let mut tables = Tables::new(e, cfg)?;
     let (_, stats) = serve(&mut tables, |d| {

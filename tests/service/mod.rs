@@ -518,3 +518,36 @@ fn a_signal_delivered_to_any_thread_stops_the_service_at_once() {
         assert!(status.success(), "{status:?}");
     }
 }
+
+/// A service takes as many clients at once as `--max-clients` says: one more gets the
+/// typed `Full` error naming the flag; a client that leaves makes room. 0 is refused.
+#[test]
+fn a_service_takes_as_many_clients_as_it_was_made_for() {
+    let ns = namespace("full");
+    let _serve = Serve::start("room", &ns, &["--max-clients", "2"]);
+    let w = load_world("room").unwrap();
+    let a = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    let mut b = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    let err = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap_err();
+    assert!(matches!(err, ClientError::Full { max: 2, .. }), "{err:?}");
+    assert!(
+        err.to_string()
+            .contains("has as many clients as it takes (2); close one, or start the service with a larger --max-clients"),
+        "{err}"
+    );
+    drop(a);
+    let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    let s = [w.initial];
+    assert_eq!(
+        b.values(Ask::Lookup, &s, 1).unwrap().values,
+        c.values(Ask::Lookup, &s, 1).unwrap().values
+    );
+    let out = fulcrum()
+        .args(["serve", "room", "--max-clients", "0", "--namespace"])
+        .arg(namespace("zero"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("--max-clients 0 must be 1 to 1024"), "{err}");
+}

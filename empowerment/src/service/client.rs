@@ -16,6 +16,7 @@ use iceoryx2::port::client::Client as IoxClient;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;
+use iceoryx2::service::port_factory::client::ClientCreateError;
 
 use super::error::ClientError;
 use super::ports::{clean_dead_nodes, event_service, rr_service, Pending, Rr};
@@ -86,10 +87,13 @@ impl Client {
             .create::<ipc::Service>()
             .map_err(|e| ClientError::transport("node", e))?;
         let svc = wait_for_server(&node, &names, namespace, t0, deadline)?;
-        let client = svc
-            .client_builder()
-            .create()
-            .map_err(|e| ClientError::transport("client", e))?;
+        let client = svc.client_builder().create().map_err(|e| match e {
+            ClientCreateError::ExceedsMaxSupportedClients => ClientError::Full {
+                namespace: namespace.to_string(),
+                max: svc.static_config().max_clients(),
+            },
+            e => ClientError::transport("client", e),
+        })?;
         let wake_svc = event_service(&node, &names.server_wake)
             .map_err(|e| ClientError::transport("server wake-up event", e))?;
         let wake = wake_svc
@@ -397,7 +401,7 @@ fn wait_for_server(
     deadline: Duration,
 ) -> Result<Rr, ClientError> {
     loop {
-        let ok = rr_service(node, names, false)
+        let ok = rr_service(node, names, None)
             .ok()
             .filter(|s| s.dynamic_config().number_of_servers() > 0);
         if let Some(s) = ok {

@@ -71,6 +71,14 @@ pub enum ClientError {
         /// Its hash.
         wanted_hash: u64,
     },
+    /// The service has as many clients as it was made for.
+    #[error("the empowerment service for namespace '{namespace}' has as many clients as it takes ({max}); close one, or start the service with a larger --max-clients")]
+    Full {
+        /// Namespace.
+        namespace: String,
+        /// The clients it takes at once.
+        max: usize,
+    },
     /// A request got no answer in time.
     #[error("the empowerment service did not answer within {0:?}")]
     Timeout(Duration),

@@ -21,29 +21,35 @@ pub(super) type Rr = RrFactory<ipc::Service, EmpRequest, u128, EmpResponse, ()>;
 pub(super) type Pending =
     iceoryx2::pending_response::PendingResponse<ipc::Service, EmpRequest, u128, EmpResponse, ()>;
 
-/// The request-response service, built the same way by every process: created if
-/// `create`, else only opened.
+/// The request-response service, built the same way by every process: created for
+/// `Some(clients)` clients (the server), else only opened, whatever number of clients
+/// the server made it for (a client asks for none: the server's memory grows with it,
+/// and a training run makes it for its own actors).
 pub(super) fn rr_service(
     node: &Node<ipc::Service>,
     names: &Names,
-    create: bool,
+    create: Option<usize>,
 ) -> Result<Rr, IpcSource> {
-    let b = node
+    let mut b = node
         .service_builder(&ServiceName::new(&names.empowerment)?)
         .request_response::<EmpRequest, EmpResponse>()
         .request_user_header::<u128>()
-        .max_clients(MAX_CLIENTS)
         .max_servers(2)
-        .max_nodes(MAX_CLIENTS + 4)
         .max_active_requests_per_client(MAX_IN_FLIGHT)
         .max_loaned_requests(MAX_IN_FLIGHT)
         .max_response_buffer_size(MAX_IN_FLIGHT)
         .enable_safe_overflow_for_requests(false)
         .enable_safe_overflow_for_responses(false);
-    if create {
-        Ok(b.open_or_create()?)
-    } else {
-        Ok(b.open()?)
+    match create {
+        Some(clients) => {
+            // Nodes cost little: as many as the most clients, so that one too many gets
+            // "full" at its client, not a service it cannot open.
+            b = b
+                .max_clients(clients)
+                .max_nodes(MAX_CLIENTS.max(clients) + 4);
+            Ok(b.open_or_create()?)
+        }
+        None => Ok(b.open()?),
     }
 }
 

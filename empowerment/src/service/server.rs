@@ -59,8 +59,8 @@ pub fn serve(
     ready: impl FnOnce(&Describe),
 ) -> Result<(ServeExit, ServeStats), ServiceError> {
     let ns = tables.cfg.namespace.clone();
-    let spin = tables.cfg.spin;
-    serve_with(tables, &ns, spin, ready)
+    let (spin, clients) = (tables.cfg.spin, tables.cfg.max_clients);
+    serve_with(tables, &ns, spin, clients, ready)
 }
 
 /// Serve `namespace`'s requests with `answers` until SIGINT or SIGTERM (polling `spin`
@@ -69,9 +69,10 @@ pub fn serve_with(
     answers: &mut dyn Answer,
     namespace: &str,
     spin: Duration,
+    max_clients: usize,
     ready: impl FnOnce(&Describe),
 ) -> Result<(ServeExit, ServeStats), ServiceError> {
-    let ports = Ports::open(namespace)?;
+    let ports = Ports::open(namespace, max_clients)?;
     let waitset = WaitSetBuilder::new()
         .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
         .create::<ipc::Service>()
@@ -137,9 +138,10 @@ struct Ports {
 }
 
 impl Ports {
-    /// Check the namespace, clean up after dead processes, and open the server's ports,
-    /// refusing if another service already serves `namespace`.
-    fn open(namespace: &str) -> Result<Self, ServiceError> {
+    /// Check the namespace, clean up after dead processes, and open the server's ports
+    /// (the service made for `max_clients` clients), refusing if another service already
+    /// serves `namespace`.
+    fn open(namespace: &str, max_clients: usize) -> Result<Self, ServiceError> {
         let ns = namespace.to_string();
         if !msg::valid_namespace(&ns) {
             return Err(ServiceError::BadNamespace(ns));
@@ -150,7 +152,7 @@ impl Ports {
             tracing::info!(cleaned, "removed resources of dead processes");
         }
         let node = server_node()?;
-        let svc = rr_service(&node, &names, true)
+        let svc = rr_service(&node, &names, Some(max_clients))
             .map_err(|e| ServiceError::ipc("request-response service", e))?;
         if svc.dynamic_config().number_of_servers() > 0 {
             return Err(ServiceError::AlreadyRunning(ns));

@@ -33,6 +33,9 @@ pub struct ServeConfig {
     pub cache_bytes: usize,
     /// How long to poll for the next request before blocking.
     pub spin: Duration,
+    /// Clients the service takes at once ([`fulcrum_shared::msg::MAX_CLIENTS`] by
+    /// default; a training run's, its actors and spares).
+    pub max_clients: usize,
 }
 
 /// A QUERY's key in the cache: tool code, object mask, horizon.

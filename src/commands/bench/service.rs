@@ -223,6 +223,7 @@ fn floors(
         horizon_equipped: 6,
         cache_bytes: 1 << 20,
         spin: std::time::Duration::ZERO,
+        max_clients: fulcrum_shared::msg::MAX_CLIENTS,
     };
     let mut tables = Tables::new(Engine::new(w, Limits::default())?, cfg)?;
     let mut req = Box::new(fulcrum_shared::msg::EmpRequest {
