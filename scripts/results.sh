@@ -12,17 +12,18 @@ f=target/release/fulcrum
 out=docs/results
 mkdir -p "$out"
 
+# An experiment command; in pictures mode every run is finished and it only aggregates
+# again, quietly.
+quiet_if_pictures() {
+  if [[ "$mode" != pictures ]]; then "$@"; else "$@" > /dev/null; fi
+}
+
 # One experiment command; its summary and curves are copied under the given name (the
 # same directory serves several commands: finished runs are reused, not run again).
 run() {
   local name=$1 world=$2; shift 2
   local paper=(-- --no-action-mask --ppo-preset cleanrl)
-  if [[ "$mode" != pictures ]]; then
-    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" "${paper[@]}"
-  else
-    # Every run is finished: this only aggregates again.
-    $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" "${paper[@]}" > /dev/null
-  fi
+  quiet_if_pictures $f experiment "$world" --seeds 10 --out "experiments/$world" "$@" "${paper[@]}"
   cp "experiments/$world/plots/success.png" "$out/$name-success.png"
   cp "experiments/$world/plots/return.png" "$out/$name-return.png"
   cp "experiments/$world/summary.md" "$out/$name-summary.md"
@@ -33,11 +34,7 @@ mode=${1:-all}
 masked() {
   local world=$1 steps=$2
   local arms=baseline,additive,additive-fixed,horizon-potential,first-visit,cleanrl,baseline-unmasked,rllib
-  if [[ "$mode" != pictures ]]; then
-    $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world"
-  else
-    $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world" > /dev/null
-  fi
+  quiet_if_pictures $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world"
   for p in success solved; do
     cp "experiments/masked/$world/plots/$p.png" "$out/masked-$world-$p.png"
   done
@@ -60,9 +57,8 @@ fi
 # window around the agent (train --view crop:4), 10 seeds, on the four worlds.
 view() {
   local world=$1 steps=$2
-  local cmd=($f experiment "$world" --seeds 10 --steps "$steps" --arms baseline,horizon-potential
-             --views full,crop:4 --out "experiments/view/$world")
-  if [[ "$mode" != pictures ]]; then "${cmd[@]}"; else "${cmd[@]}" > /dev/null; fi
+  quiet_if_pictures $f experiment "$world" --seeds 10 --steps "$steps" \
+    --arms baseline,horizon-potential --views full,crop:4 --out "experiments/view/$world"
   cp "experiments/view/$world/plots/solved.png" "$out/view-$world-solved.png"
   cp "experiments/view/$world/summary.md" "$out/view-$world-summary.md"
 }
@@ -76,12 +72,12 @@ fi
 # The paper's unmasked setting, measured before masking and the advantage floor existed:
 # `run` passes `-- --no-action-mask --ppo-preset cleanrl`, which gives those same runs.
 if [[ "$mode" != pictures || -d experiments/exp3 ]]; then
-  # Issue 5: PPO against PPO + the paper's additive bonus, four worlds.
+  # PPO against PPO + the paper's additive bonus, four worlds.
   run exp1-tree exp1-tree --steps 2097152
   run exp1-wall exp1-wall --steps 2097152
   run exp2 exp2 --steps 3145728
   run exp3 exp3 --steps 3145728
-  # Issue 7: the intrinsic reward forms, and beta sweeps on exp1-tree.
+  # The intrinsic reward forms, and beta sweeps on exp1-tree.
   for spec in "exp1-tree 2097152" "exp2 3145728" "exp3 3145728"; do
     set -- $spec
     run "$1-forms" "$1" --steps "$2" --arms baseline,empowerment,potential,count
