@@ -115,15 +115,6 @@ pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
     file.sync_data()
 }
 
-/// The rows of `path` (none when it does not exist; torn lines skipped).
-pub fn read(path: &Path) -> std::io::Result<Vec<EvalRow>> {
-    match std::fs::read_to_string(path) {
-        Ok(text) => Ok(text.lines().filter_map(EvalRow::parse).collect()),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Vec::new()),
-        Err(e) => Err(e),
-    }
-}
-
 /// Drop the periodic rows of updates after `update` (and torn lines), keeping every
 /// other row, atomically; returns the periodic rows kept, for TensorBoard.
 pub fn trim_periodic(path: &Path, update: u64) -> std::io::Result<Vec<EvalRow>> {
@@ -153,6 +144,15 @@ pub fn trim_periodic(path: &Path, update: u64) -> std::io::Result<Vec<EvalRow>> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The rows of `path` (none when it does not exist; torn lines skipped).
+    fn read(path: &Path) -> std::io::Result<Vec<EvalRow>> {
+        match std::fs::read_to_string(path) {
+            Ok(text) => Ok(text.lines().filter_map(EvalRow::parse).collect()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(Vec::new()),
+            Err(e) => Err(e),
+        }
+    }
 
     fn row(update: u64, mode: &str) -> EvalRow {
         EvalRow {

@@ -134,6 +134,7 @@ pub fn summarise(eps: &[Episode]) -> Summary {
 
 /// Plays `episodes` episodes of the policy in `ckpt` on `world` (the run's, or another
 /// of the same shape): greedy, or sampled with a ChaCha generator seeded by `seed`.
+/// Returns the episodes and the checkpoint's update and env steps.
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate(
     paths: &RunPaths,
@@ -144,7 +145,7 @@ pub fn evaluate(
     episodes: usize,
     greedy: bool,
     seed: u64,
-) -> Result<Vec<Episode>> {
+) -> Result<(Vec<Episode>, u64, u64)> {
     if cfg.shape(world) != cfg.shape(run_world) {
         let (a, b) = (world.obs_spec(), run_world.obs_spec());
         let (n, m) = (world.tools.len(), run_world.tools.len());
@@ -159,8 +160,10 @@ pub fn evaluate(
             ),
         });
     }
-    let mut policy = load_policy(ckpt, paths, cfg, run_world)?;
-    Ok(play(&mut policy, cfg.view, world, episodes, greedy, seed))
+    let (mut policy, counters) = load_policy(ckpt, paths, cfg, run_world)?;
+    let eps = play(&mut policy, cfg.view, world, episodes, greedy, seed);
+    let count = |k: &str| counters.get(k).copied().unwrap_or(0);
+    Ok((eps, count("update"), count("env_steps")))
 }
 
 /// Plays `episodes` episodes of `policy` on `world` seen through `view`: greedy, or

@@ -7,6 +7,7 @@
 //! not-held horizon by the inventory) for the agent standing there, with the inventory
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -34,7 +35,7 @@ pub fn record(
     out: &Path,
     gif: bool,
 ) -> Result<Vec<(PathBuf, u32)>> {
-    let mut policy = load_policy(&paths.checkpoint(), paths, cfg, w)?;
+    let (mut policy, _) = load_policy(&paths.checkpoint(), paths, cfg, w)?;
 
     // E for every state, by the run's channel.
     let e = engine(w)?;
@@ -129,8 +130,14 @@ fn frame(
 }
 
 /// The policy of a checkpoint (the run's latest unless `ckpt` names another), its weights
-/// checked against the network the run's configuration and `w` give.
-pub fn load_policy(ckpt: &Path, paths: &RunPaths, cfg: &RunConfig, w: &World) -> Result<Policy> {
+/// checked against the network the run's configuration and `w` give, and the
+/// checkpoint's counters (update, env steps, ...).
+pub fn load_policy(
+    ckpt: &Path,
+    paths: &RunPaths,
+    cfg: &RunConfig,
+    w: &World,
+) -> Result<(Policy, BTreeMap<String, u64>)> {
     if !ckpt.exists() {
         return bad(format!(
             "{}: no checkpoint yet, so no policy to play",
@@ -154,5 +161,5 @@ pub fn load_policy(ckpt: &Path, paths: &RunPaths, cfg: &RunConfig, w: &World) ->
         policy.set(&flat),
         "the checkpoint's weights do not fit the network"
     );
-    Ok(policy)
+    Ok((policy, contents.extra.counters))
 }

@@ -225,10 +225,7 @@ impl RunConfig {
     /// no mark (and were trained unmasked or with the full view, as their configuration
     /// files read).
     pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), String> {
-        for (key, ours) in [
-            ("action_mask", self.action_mask.to_string()),
-            ("view", self.view.to_string()),
-        ] {
+        for (key, ours) in self.checkpoint_marks() {
             match extra.meta.get(key) {
                 Some(m) if *m != ours => {
                     return Err(format!(

@@ -25,18 +25,10 @@ pub fn run(a: &EvalArgs) -> Result<()> {
     let ckpt = a.checkpoint.clone().unwrap_or_else(|| paths.checkpoint());
     let greedy = !a.sample;
     let seed = a.seed.unwrap_or(cfg.seed);
-    let eps = evaluate(
+    let (eps, update, steps) = evaluate(
         &paths, &cfg, &run_world, &world, &ckpt, a.episodes, greedy, seed,
     )?;
     let s = summarise(&eps);
-    // The checkpoint's update and env steps, for the row.
-    let counters = fulcrum_shared::checkpoint::read(&ckpt, &cfg.shape(&run_world).params())
-        .map(|c| c.extra.counters)
-        .unwrap_or_default();
-    let (update, steps) = (
-        counters.get("update").copied().unwrap_or(0),
-        counters.get("env_steps").copied().unwrap_or(0),
-    );
     let mode = if greedy { "greedy" } else { "sample" };
     let iv = |e: &Estimate, pct: bool| {
         if pct {

@@ -332,7 +332,7 @@ kill -INT $P; wait $P
 /// settings fit and finish, since a run's empowerment
 /// service and weights are made for its own actors (they once took about 140 MiB
 /// whatever the run, and these runs were refused); a run too big (exp2 with 256 worlds
-/// per actor, about 90 MiB of chunks) is refused before anything starts, one sentence
+/// per actor, 100 MiB of chunks) is refused before anything starts, one sentence
 /// with what is needed and what is free.
 #[test]
 fn a_64_mib_dev_shm_runs_the_papers_worlds_and_refuses_what_does_not_fit() {
