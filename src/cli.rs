@@ -349,12 +349,20 @@ pub struct TrainArgs {
     /// The baseline: no empowerment service, reward R only (= `--intrinsic none`).
     #[arg(long)]
     pub no_empowerment: bool,
-    /// The intrinsic reward form: additive (R + beta E(s'), the paper's), potential
-    /// (R + beta (gamma E(s') - E(s))), horizon-potential (the same with Phi = sum over
-    /// h <= H of E^h), first-visit (beta E(s') once per inventory per episode), count
-    /// (R + beta / sqrt N(s')) or none [default: additive].
+    /// The intrinsic reward form: horizon-potential (R + beta (gamma Phi(s') -
+    /// Phi(s)), Phi = sum over h <= H of E^h: potential-based shaping, which keeps the
+    /// task's optimal policies and so cannot trap), additive (R + beta E(s'), the
+    /// paper's; it pays for standing where E is high and can trap a run there),
+    /// potential (the same shaping with Phi = E), first-visit (beta E(s') once per
+    /// inventory per episode), count (R + beta / sqrt N(s')) or none
+    /// [default: horizon-potential].
     #[arg(long, value_parser = ["additive", "potential", "horizon-potential", "first-visit", "count", "none"])]
     pub intrinsic: Option<String>,
+    /// The paper's setting in one flag: the additive bonus with the world's beta, every
+    /// action in every mode (no mask) and RLlib's PPO defaults (= `--intrinsic additive
+    /// --no-action-mask --ppo-preset rllib`).
+    #[arg(long, conflicts_with_all = ["intrinsic", "no_empowerment", "ppo_preset"])]
+    pub paper: bool,
     /// switch: the held / not-held horizons of the world file (the paper's); fixed: the
     /// not-held horizon everywhere [default: switch].
     #[arg(long, value_parser = ["switch", "fixed"])]
@@ -635,7 +643,16 @@ pub struct EvalArgs {
 #[derive(Debug, Args)]
 pub struct ExperimentArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
-    pub world: String,
+    #[arg(required_unless_present = "worlds", conflicts_with = "worlds")]
+    pub world: Option<String>,
+    /// Instead of one world, a set of generated worlds nobody wrote: gen:N, or
+    /// gen:N:width=W,height=H,tools=T,objects=O,rock=R,seed=S (defaults 12 x 8, 3
+    /// tools, 2 objects, rock 0.1, seed 1): the first N worlds of `world generate`
+    /// from that seed on whose task can be done within an episode (a search over the
+    /// world's states), every arm and seed on each, and the (world, seed) pairs pooled
+    /// per arm in DIR/summary.md.
+    #[arg(long, value_name = "gen:N[:KEY=VALUE,...]")]
+    pub worlds: Option<String>,
     /// Seeds per arm (seeds 1..=N).
     #[arg(long, default_value_t = 10)]
     pub seeds: u64,
@@ -648,12 +665,14 @@ pub struct ExperimentArgs {
     /// Arms, comma separated: baseline (no intrinsic reward), empowerment (the
     /// --intrinsic form), a form by name (none, additive, potential, count,
     /// horizon-potential, first-visit), additive-fixed (additive with --horizon-mode
-    /// fixed), a baseline with another PPO preset (cleanrl, rllib), or
-    /// baseline-unmasked (the baseline with --no-action-mask).
+    /// fixed), paper (train --paper: additive, unmasked, RLlib's PPO), a baseline with
+    /// another PPO preset (cleanrl, rllib), or baseline-unmasked (the baseline with
+    /// --no-action-mask).
     #[arg(long, default_value = "baseline,empowerment")]
     pub arms: String,
-    /// The intrinsic reward form of the `empowerment` arm and of --beta-sweep's arms.
-    #[arg(long, default_value = "additive", value_parser = ["additive", "potential", "count", "horizon-potential", "first-visit"])]
+    /// The intrinsic reward form of the `empowerment` arm and of --beta-sweep's arms
+    /// (train's default form).
+    #[arg(long, default_value = "horizon-potential", value_parser = ["additive", "potential", "count", "horizon-potential", "first-visit"])]
     pub intrinsic: String,
     /// Also one arm per beta, comma separated, with the --intrinsic form (named
     /// beta-<b> for additive, <form>-beta-<b> otherwise).
@@ -739,6 +758,7 @@ impl TrainArgs {
                 (a.beta.is_some(), "--beta"),
                 (a.no_empowerment, "--no-empowerment"),
                 (a.no_action_mask, "--no-action-mask"),
+                (a.paper, "--paper"),
                 (a.view.is_some(), "--view"),
                 (a.intrinsic_value_head, "--intrinsic-value-head"),
                 (a.gamma_int.is_some(), "--gamma-int"),
@@ -774,6 +794,8 @@ impl TrainArgs {
             beta: a.beta,
             intrinsic: if a.no_empowerment {
                 Some(Intrinsic::None)
+            } else if a.paper {
+                Some(Intrinsic::Additive)
             } else {
                 a.intrinsic
                     .as_deref()
@@ -789,7 +811,7 @@ impl TrainArgs {
                 .map_err(BadRequest)?,
             intrinsic_value_head: a.intrinsic_value_head,
             gamma_int: a.gamma_int,
-            action_mask: !a.no_action_mask,
+            action_mask: !(a.no_action_mask || a.paper),
             view: a
                 .view
                 .as_deref()
@@ -816,7 +838,11 @@ impl TrainArgs {
             lr: a.lr,
             epochs: a.epochs,
             minibatches: a.minibatches,
-            ppo_preset: a.ppo_preset.clone(),
+            ppo_preset: if a.paper {
+                Some("rllib".to_string())
+            } else {
+                a.ppo_preset.clone()
+            },
             remote: a.listen.is_some(),
             stall_timeout: a.stall_timeout,
         })

@@ -101,7 +101,7 @@ def main():
     torch.set_num_threads(1)
     env = fulcrum.make_vec(a.world, num_envs=a.num_envs, seed=a.seed)
     if not a.no_empowerment:
-        env = EmpowermentReward(env, gamma=a.gamma)
+        env = EmpowermentReward(env, form="additive", gamma=a.gamma)
     w = env.unwrapped.world
     n, T = a.num_envs, a.num_steps
     cells, glyphs = w.width * w.height, 9 + len(w.tools)

@@ -23,7 +23,7 @@ import fulcrum
 from fulcrum.wrappers import EmpowermentReward
 
 world = sys.argv[1] if len(sys.argv) > 1 else "exp1-tree"
-env = EmpowermentReward(fulcrum.make_vec(world, num_envs=16, seed=0))
+env = EmpowermentReward(fulcrum.make_vec(world, num_envs=16, seed=0), form="additive")
 print(env.settings)
 rng = np.random.default_rng(0)
 obs, info = env.reset(seed=0)

@@ -53,6 +53,8 @@ pub mod running_std;
 pub mod simd;
 /// TensorBoard event files beside `metrics.csv` (`RUN/tb/`).
 pub mod tensorboard;
+/// The beacon-trap detector: an additive run standing where E is high.
+pub mod trap;
 /// No silent hang and no divergence spread: the finite-weight check, the local
 /// actors' deadline in synchronous mode, the notices to the supervisor.
 pub mod watch;

@@ -38,11 +38,13 @@ pub const METRICS_COLUMNS: &[&str] = &[
     "first_pickup_step",
     "lost_chunks",
     "remote_actors",
+    "trap",
 ];
 
 /// Columns of `metrics.csv` files written before `e_positive_frac` and
-/// `first_pickup_step`, and before `lost_chunks` and `remote_actors` (still read).
-const LEGACY_COLUMNS: [usize; 2] = [19, 21];
+/// `first_pickup_step`, before `lost_chunks` and `remote_actors`, and before `trap`
+/// (still read).
+const LEGACY_COLUMNS: [usize; 3] = [19, 21, 23];
 
 /// One row of `metrics.csv`.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -88,6 +90,9 @@ pub struct MetricsRow {
     pub lost_chunks: u64,
     /// Actors of other hosts whose chunks this update used.
     pub remote_actors: u64,
+    /// Whether the beacon-trap detector marks this update ([`crate::trap`]; 0 in files
+    /// written before the column).
+    pub trap: bool,
 }
 
 impl MetricsRow {
@@ -126,6 +131,7 @@ impl MetricsRow {
                 .unwrap_or_default(),
             self.lost_chunks.to_string(),
             self.remote_actors.to_string(),
+            u8::from(self.trap).to_string(),
         ]
         .join(",")
     }
@@ -173,6 +179,7 @@ impl MetricsRow {
             },
             lost_chunks: if v.len() > 21 { u(21)? } else { 0 },
             remote_actors: if v.len() > 22 { u(22)? } else { 0 },
+            trap: v.len() > 23 && u(23)? == 1,
         })
     }
 }
@@ -249,6 +256,7 @@ mod tests {
             first_pickup_step: Some(2048),
             lost_chunks: 5,
             remote_actors: 2,
+            trap: true,
         };
         let line = r.csv();
         assert_eq!(line.split(',').count(), METRICS_COLUMNS.len());
@@ -261,12 +269,15 @@ mod tests {
             first_pickup_step: None,
             ..r
         };
-        assert!(none.csv().ends_with(",0.375,,5,2"));
+        assert!(none.csv().ends_with(",0.375,,5,2,1"));
         assert_eq!(
             MetricsRow::parse(&none.csv()).unwrap().first_pickup_step,
             None
         );
         // Rows of files written before the last columns still parse.
+        let before_trap: Vec<&str> = line.split(',').take(23).collect();
+        let before_trap = MetricsRow::parse(&before_trap.join(",")).unwrap();
+        assert_eq!((before_trap.remote_actors, before_trap.trap), (2, false));
         let mid: Vec<&str> = line.split(',').take(21).collect();
         let mid = MetricsRow::parse(&mid.join(",")).unwrap();
         assert_eq!((mid.first_pickup_step, mid.lost_chunks), (Some(2048), 0));

@@ -51,9 +51,10 @@ use crate::evalcsv::EvalRow;
 use crate::hosts::{HostsLog, HOSTS_COLUMNS};
 use crate::intake::take_chunk;
 use crate::local::update;
-use crate::metrics::{append_row, open_metrics, sync_rows, trim_metrics, MetricsRow};
+use crate::metrics::{append_row, open_metrics, read_metrics, sync_rows, trim_metrics, MetricsRow};
 use crate::net::Net;
 use crate::paths::RunPaths;
+use crate::trap::TrapDetector;
 use crate::watch::{ensure_finite, Fault, LocalStall, Notice};
 use fulcrum_shared::IpcError;
 
@@ -259,6 +260,9 @@ struct Learner<'a> {
     notice: Box<dyn FnMut(&Notice) + 'a>,
     /// The periodic evaluation (`train --eval-every`).
     evaluate: Option<Evaluate<'a>>,
+    /// The beacon-trap detector, and whether it has spoken in this session.
+    trap: TrapDetector,
+    trap_told: bool,
 }
 
 impl<'a> Learner<'a> {
@@ -316,6 +320,14 @@ impl<'a> Learner<'a> {
         let ports = Ports::open(namespace, net.len(), cfg.weights_subscribers())?;
         ports.publish(&net, run, world_hash, ctr.update)?;
         let metrics = open_metrics(&paths.metrics())?;
+        // The detector sees the rows a resume keeps, so that it marks the next ones
+        // exactly as an uninterrupted run would.
+        let mut trap = TrapDetector::new(cfg.form(), cfg.beta, world);
+        if ctr.update > 0 {
+            for row in read_metrics(&paths.metrics()).unwrap_or_default() {
+                trap.observe(&row);
+            }
+        }
         // Periodic evaluations after the checkpoint are made again.
         let evals = crate::evalcsv::trim_periodic(&paths.eval(), ctr.update).map_err(|e| {
             LearnerError::Run(format!("cannot trim {}: {e}", paths.eval().display()))
@@ -355,6 +367,8 @@ impl<'a> Learner<'a> {
             local: LocalStall::default(),
             notice: Box::new(|_| {}),
             evaluate: None,
+            trap,
+            trap_told: false,
         })
     }
 
@@ -724,7 +738,7 @@ impl<'a> Learner<'a> {
         if self.ctr.first_pickup == 0 && s.pickups > 0 {
             self.ctr.first_pickup = self.ctr.env_steps;
         }
-        let row = MetricsRow {
+        let mut row = MetricsRow {
             update: self.ctr.update,
             env_steps: self.ctr.env_steps,
             episodes: s.episodes,
@@ -751,7 +765,15 @@ impl<'a> Learner<'a> {
                 .iter()
                 .filter(|c| traj::host_of(c.h.actor) > 0)
                 .count() as u64,
+            trap: false,
         };
+        if let Some(signs) = self.trap.observe(&row) {
+            row.trap = true;
+            if !self.trap_told {
+                self.trap_told = true;
+                (self.notice)(&Notice::Trap(signs));
+            }
+        }
         self.last = now;
         append_row(&mut self.metrics, &self.paths.metrics(), &row)?;
         if let Some(tb) = self.tb.as_mut() {

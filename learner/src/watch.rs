@@ -57,6 +57,9 @@ pub enum Notice {
         /// Whether its chunk was refused rather than late.
         refused: bool,
     },
+    /// The beacon-trap detector marked an update for the first time in this session
+    /// ([`crate::trap`]).
+    Trap(crate::trap::TrapSigns),
 }
 
 /// Refuses a weights buffer with any non-finite number: the weights after `update`.

@@ -59,7 +59,10 @@ class EmpowermentReward(gym.vector.VectorWrapper):
     count), so both can be logged apart. Arrays are the wrapper's own, rewritten every
     step.
 
-    Parameters: ``form`` (above), ``beta`` (default: the world's for additive and
+    Parameters: ``form`` (above; the default is ``horizon-potential``, as ``fulcrum
+    train``'s: potential-based shaping keeps the task's optimal policies, so it cannot
+    make standing where E is high pay more than the task, as the additive bonus can),
+    ``beta`` (default: the world's for additive and
     potential, 0.05 for horizon-potential, 0.1 for first-visit), ``tool`` (a tool
     name, ``"all"`` or ``"auto"``: the matrix's selection), ``objects`` (``"tree"``,
     ``"boulder+door"``, a list of names, or ``"agent"``), ``horizons`` (``h`` or
@@ -69,7 +72,7 @@ class EmpowermentReward(gym.vector.VectorWrapper):
     def __init__(
         self,
         env: gym.vector.VectorEnv,
-        form: str = "additive",
+        form: str = "horizon-potential",
         beta: float | None = None,
         tool: str | None = None,
         objects: str | Sequence[str] | None = None,

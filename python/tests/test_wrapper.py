@@ -30,8 +30,21 @@ def walk(env, actions, other=W):
     return out
 
 
-def test_additive_is_r_plus_beta_e():
+def test_the_default_form_is_horizon_potential():
+    # The documented default: potential-based shaping with Phi = sum of E^h, beta 0.05
+    # (it cannot trap); the paper's additive bonus is form="additive".
     env = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=2))
+    assert env.settings.startswith("horizon-potential: beta 0.05, axe -> tree, h 8 unequipped / 3")
+    explicit = EmpowermentReward(
+        fulcrum.make_vec("exp1-tree", num_envs=2), form="horizon-potential"
+    )
+    env.reset()
+    explicit.reset()
+    assert walk(env, TO_THE_TREE) == walk(explicit, TO_THE_TREE)
+
+
+def test_additive_is_r_plus_beta_e():
+    env = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=2), form="additive")
     env.reset()
     got = walk(env, TO_THE_TREE)
     assert [g[2] for g in got] == E_NEXT
@@ -98,7 +111,7 @@ def test_explicit_tool_objects_and_horizons():
 def test_over_other_wrappers_the_reward_they_return_gets_the_bonus():
     base = fulcrum.make_vec("exp1-tree", num_envs=2)
     inner = gym.wrappers.vector.TransformReward(base, lambda r: 10 * r)
-    env = EmpowermentReward(inner)
+    env = EmpowermentReward(inner, form="additive")
     env.reset()
     got = walk(env, TO_THE_TREE)
     assert got[-1][0] == pytest.approx(10.0 + 0.0)

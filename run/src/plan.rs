@@ -248,7 +248,8 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         } else {
             spec.clone()
         };
-    let form = a.intrinsic.unwrap_or(Intrinsic::Additive);
+    // The default form is potential-based (`Intrinsic::default`): it cannot trap.
+    let form = a.intrinsic.unwrap_or_default();
     let mode = a.horizon_mode.unwrap_or_default();
     let fixed = mode == HorizonMode::Fixed;
     let preset: Preset = a

@@ -577,3 +577,44 @@ pub fn solved_by(times: &[(f64, bool)], grid: &[f64]) -> Vec<f64> {
         })
         .collect()
 }
+
+/// Holm's step-down adjustment of the p-values `ps` of one family (Holm 1979), in the
+/// order given: sorted ascending, the i-th (from 0) becomes `min(1, (m - i) p)`, made
+/// non-decreasing along the sorted order. NaN p-values are left NaN and not counted.
+pub fn holm(ps: &[f64]) -> Vec<f64> {
+    let mut order: Vec<usize> = (0..ps.len()).filter(|&i| !ps[i].is_nan()).collect();
+    order.sort_by(|&a, &b| ps[a].total_cmp(&ps[b]));
+    let m = order.len();
+    let mut out = vec![f64::NAN; ps.len()];
+    let mut running: f64 = 0.0;
+    for (i, &k) in order.iter().enumerate() {
+        running = running.max(((m - i) as f64 * ps[k]).min(1.0));
+        out[k] = running;
+    }
+    out
+}
+
+/// McNemar's exact test of paired binary outcomes (two-sided): `b` pairs where only
+/// the first of the two succeeded, `c` where only the second did; under the null each
+/// discordant pair goes either way with probability 1/2, so
+/// `p = min(1, 2 * P(X <= min(b, c)))`, X ~ Binomial(b + c, 1/2); 1 without a
+/// discordant pair.
+pub fn mcnemar_exact(b: usize, c: usize) -> f64 {
+    let n = b + c;
+    if n == 0 {
+        return 1.0;
+    }
+    let k = b.min(c);
+    // log C(n, i) - n log 2, summed in probability space.
+    let ln2n = n as f64 * std::f64::consts::LN_2;
+    let tail: f64 = (0..=k)
+        .map(|i| {
+            (ln_gamma(n as f64 + 1.0)
+                - ln_gamma(i as f64 + 1.0)
+                - ln_gamma((n - i) as f64 + 1.0)
+                - ln2n)
+                .exp()
+        })
+        .sum();
+    (2.0 * tail).min(1.0)
+}

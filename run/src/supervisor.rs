@@ -43,6 +43,7 @@ use crate::process::{
 use crate::progress::Progress;
 use crate::restart::{Budget, RestartPolicy};
 use crate::watchdog::{parse_notice, Watchdog};
+use fulcrum_learner::trap::TrapDetector;
 use fulcrum_learner::watch::Notice;
 
 /// Exit code of a learner that stopped early on request (after a set number of updates).
@@ -607,6 +608,10 @@ impl Supervisor {
             } else {
                 format!("no chunk from actor {actor} for {waited_s:.1} s: the learner goes on without it until its next chunk")
             }),
+            Some(Notice::Trap(signs)) => progress.note(&format!(
+                "warning: {} (metrics.csv marks the updates in its `trap` column)",
+                TrapDetector::warning(&signs)
+            )),
             None => {}
         }
     }

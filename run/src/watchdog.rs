@@ -12,11 +12,13 @@
 //! which it prints on its stdout as lines: `waiting SECS ACTORS` once a second while it
 //! waits for chunks, `stalled ACTOR SECS late|refused` when it goes on without a local
 //! actor. A learner that says nothing for several seconds is itself the one that
-//! stalled.
+//! stalled. (`trap LIMIT SINCE LENGTH SHARE BONUS WORTH DWELL` is no stall: the beacon-trap detector's
+//! first mark, which the supervisor prints as a warning.)
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
+use fulcrum_learner::trap::TrapSigns;
 use fulcrum_learner::watch::Notice;
 
 /// The watchdog's limit in multiples of the median recent update interval.
@@ -48,6 +50,16 @@ pub fn notice_line(n: &Notice) -> String {
             "stalled {actor} {waited_s:.1} {}",
             if *refused { "refused" } else { "late" }
         ),
+        Notice::Trap(t) => format!(
+            "trap {} {} {} {} {} {} {}",
+            t.max_steps,
+            t.since_step,
+            t.episode_length,
+            t.intrinsic_share,
+            t.bonus,
+            t.worth,
+            t.e_positive_frac
+        ),
     }
 }
 
@@ -71,6 +83,15 @@ pub fn parse_notice(line: &str) -> Option<Notice> {
             waited_s: s.parse().ok()?,
             refused: *how == "refused",
         }),
+        ["trap", limit, since, len, share, bonus, worth, dwell] => Some(Notice::Trap(TrapSigns {
+            max_steps: limit.parse().ok()?,
+            since_step: since.parse().ok()?,
+            episode_length: len.parse().ok()?,
+            intrinsic_share: share.parse().ok()?,
+            bonus: bonus.parse().ok()?,
+            worth: worth.parse().ok()?,
+            e_positive_frac: dwell.parse().ok()?,
+        })),
         _ => None,
     }
 }
@@ -189,6 +210,15 @@ mod tests {
                 waited_s: 10.0,
                 refused: false,
             },
+            Notice::Trap(TrapSigns {
+                max_steps: 100,
+                since_step: 12288,
+                episode_length: 100.0,
+                intrinsic_share: 1.0,
+                bonus: 0.0792,
+                worth: 0.0792,
+                e_positive_frac: 0.890625,
+            }),
             Notice::Stalled {
                 actor: 2,
                 waited_s: 0.0,

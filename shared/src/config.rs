@@ -107,6 +107,8 @@ pub struct RunConfig {
     pub ppo: PpoConfig,
 }
 
+/// The form of a `config.toml` without the field: written when the additive bonus was
+/// the default, it keeps meaning what it meant (not [`Intrinsic::default`]).
 fn default_intrinsic() -> Intrinsic {
     Intrinsic::Additive
 }
@@ -521,6 +523,24 @@ mod tests {
         assert_eq!(toml::from_str::<RunConfig>(&text).unwrap(), crop);
         let e = toml::from_str::<RunConfig>(&text.replace("crop:4", "crop:0")).unwrap_err();
         assert!(e.to_string().contains("unknown view 'crop:0'"), "{e}");
+    }
+
+    #[test]
+    fn a_config_without_the_form_reads_as_the_additive_bonus() {
+        // Runs made while the additive bonus was the default wrote no `intrinsic`: they
+        // keep meaning what they meant, whatever a new run's default is.
+        let mut c = cfg();
+        c.empowerment = true;
+        c.intrinsic = Intrinsic::HorizonPotential;
+        let text = c.to_toml();
+        assert!(
+            text.contains("intrinsic = \"horizon-potential\"\n"),
+            "{text}"
+        );
+        let old = text.replace("intrinsic = \"horizon-potential\"\n", "");
+        let back: RunConfig = toml::from_str(&old).unwrap();
+        assert_eq!(back.intrinsic, Intrinsic::Additive);
+        assert_eq!(Intrinsic::default(), Intrinsic::HorizonPotential);
     }
 
     #[test]

@@ -5,13 +5,20 @@
 //! distinct floor cells. Tool kinds cycle through axe, pickaxe, key, wand, tin_opener,
 //! katana, so every rule of the default table gets exercised; object kinds are drawn
 //! from tree, wall, door, boulder. The same parameters and seed give the same file.
+//!
+//! A generated world's task (destroy its first object) need not be possible: rock may
+//! wall the object or the tools in, and no tool may fit the object.
+//! [`fewest_steps_to_task`] says whether it is (a breadth-first search with the world's
+//! own step), and a [`GenSet`] (`gen:N[:key=value,...]`, as `fulcrum experiment
+//! --worlds` takes it) keeps the first N worlds by seed whose task can be done within an
+//! episode.
 
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use crate::state::{MAX_OBJECTS, MAX_TOOLS};
-use crate::world::MAX_SIDE;
+use crate::state::{State, MAX_OBJECTS, MAX_TOOLS};
+use crate::world::{Task, World, MAX_SIDE};
 
 /// Tool kinds in the order generated worlds use them.
 pub const TOOL_KINDS: [&str; 6] = ["axe", "pickaxe", "key", "wand", "tin_opener", "katana"];
@@ -140,4 +147,181 @@ pub fn generate(p: &GenParams) -> Result<String, GenError> {
         ));
     }
     Ok(out)
+}
+
+/// The fewest steps in which the task of `w` is done from its initial state: a
+/// breadth-first search over (state, task objects already paid) with the world's own
+/// step, up to `limit` steps. `None` when the world has no task or the task cannot be
+/// done within `limit` steps (an object walled in, no tool that fits it, a tool out of
+/// reach).
+pub fn fewest_steps_to_task(w: &World, limit: u32) -> Option<u32> {
+    use std::collections::HashSet;
+    if w.task == Task::None {
+        return None;
+    }
+    let start = (w.initial, 0u16);
+    let mut seen: HashSet<(State, u16)> = HashSet::from([start]);
+    let mut frontier = vec![start];
+    let actions = w.num_actions() as u8;
+    for depth in 1..=limit {
+        let mut next = Vec::new();
+        for &(s, paid) in &frontier {
+            for a in 0..actions {
+                let n = w.step(&s, a);
+                let mut now = paid;
+                let (_, done) = w.task_reward(&n, &mut now);
+                if done {
+                    return Some(depth);
+                }
+                if seen.insert((n, now)) {
+                    next.push((n, now));
+                }
+            }
+        }
+        if next.is_empty() {
+            return None;
+        }
+        frontier = next;
+    }
+    None
+}
+
+/// How generated worlds for an experiment are asked for: `gen:N` or
+/// `gen:N:key=value,...` with keys `width`, `height`, `tools`, `objects`, `rock` (the
+/// parameters of [`generate`]) and `seed` (the first seed tried).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GenSet {
+    /// How many worlds.
+    pub count: usize,
+    /// The parameters of every world; `seed` is the first seed tried.
+    pub params: GenParams,
+}
+
+/// The parameters of `gen:N` without keys: a 12 x 8 map as the paper's exp1 worlds,
+/// three tools (an axe, a pickaxe, a key: every object kind has a tool that fits it, and
+/// two more are distractors), two objects (the first is the task), a tenth of the inner
+/// cells rock.
+pub const GEN_SET_DEFAULTS: GenParams = GenParams {
+    width: 12,
+    height: 8,
+    tools: 3,
+    objects: 2,
+    rock: 0.1,
+    seed: 1,
+};
+
+/// Seeds tried per world asked for before the set is refused.
+const TRIES_PER_WORLD: u64 = 1000;
+
+impl std::str::FromStr for GenSet {
+    type Err = GenError;
+    fn from_str(s: &str) -> Result<GenSet, GenError> {
+        let bad = |why: String| {
+            GenError(format!("'{s}': {why} (the form is gen:N or gen:N:width=W,height=H,tools=T,objects=O,rock=R,seed=S)"))
+        };
+        let rest = s
+            .strip_prefix("gen:")
+            .ok_or_else(|| bad("it does not start with gen:".into()))?;
+        let (n, keys) = rest.split_once(':').unwrap_or((rest, ""));
+        let count: usize = n
+            .parse()
+            .ok()
+            .filter(|&c| (1..=10_000).contains(&c))
+            .ok_or_else(|| bad(format!("the count '{n}' is not a number from 1 to 10000")))?;
+        let mut p = GEN_SET_DEFAULTS;
+        for kv in keys.split(',').filter(|k| !k.is_empty()) {
+            let (k, v) = kv
+                .split_once('=')
+                .ok_or_else(|| bad(format!("'{kv}' is not key=value")))?;
+            let num = |v: &str| -> Result<usize, GenError> {
+                v.parse()
+                    .map_err(|_| bad(format!("{k} = '{v}' is not a whole number")))
+            };
+            match k {
+                "width" => p.width = num(v)?,
+                "height" => p.height = num(v)?,
+                "tools" => p.tools = num(v)?,
+                "objects" => p.objects = num(v)?,
+                "seed" => p.seed = num(v)? as u64,
+                "rock" => {
+                    p.rock = v
+                        .parse()
+                        .map_err(|_| bad(format!("rock = '{v}' is not a number")))?
+                }
+                other => return Err(bad(format!("unknown key '{other}'"))),
+            }
+        }
+        if p.objects == 0 {
+            return Err(bad(
+                "a world needs an object for its task: objects >= 1".into()
+            ));
+        }
+        // The parameters' own mistakes, in generate's words.
+        generate(&p).map_err(|e| bad(e.0))?;
+        Ok(GenSet { count, params: p })
+    }
+}
+
+impl std::fmt::Display for GenSet {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = &self.params;
+        write!(
+            f,
+            "gen:{}:width={},height={},tools={},objects={},rock={},seed={}",
+            self.count, p.width, p.height, p.tools, p.objects, p.rock, p.seed
+        )
+    }
+}
+
+/// One world of a [`GenSet`]: its seed, file text, world, and the fewest steps its task
+/// takes.
+#[derive(Debug, Clone)]
+pub struct Solvable {
+    /// The seed it was generated from.
+    pub seed: u64,
+    /// The world file's text.
+    pub text: String,
+    /// The world.
+    pub world: World,
+    /// The fewest steps its task takes (at most `max_steps`).
+    pub fewest_steps: u32,
+}
+
+impl GenSet {
+    /// The first `count` worlds, by seed from `params.seed` on, whose task can be done
+    /// within an episode ([`fewest_steps_to_task`] <= `max_steps`); the others are
+    /// skipped. Refused when too few seeds give one.
+    pub fn worlds(&self) -> Result<Vec<Solvable>, GenError> {
+        let mut out = Vec::with_capacity(self.count);
+        let first = self.params.seed;
+        let last = first.saturating_add(TRIES_PER_WORLD.saturating_mul(self.count as u64));
+        for seed in first..last {
+            if out.len() == self.count {
+                break;
+            }
+            let text = generate(&GenParams {
+                seed,
+                ..self.params
+            })?;
+            let world = crate::parse::parse_world(&text, "<generated>")
+                .map_err(|e| GenError(format!("generated world {seed} does not parse: {e}")))?;
+            if let Some(d) = fewest_steps_to_task(&world, world.max_steps) {
+                out.push(Solvable {
+                    seed,
+                    text,
+                    world,
+                    fewest_steps: d,
+                });
+            }
+        }
+        if out.len() < self.count {
+            return Err(GenError(format!(
+                "{self}: only {} of the seeds {first} to {} give a world whose task can be done within an episode, fewer than the {} asked for",
+                out.len(),
+                last - 1,
+                self.count
+            )));
+        }
+        Ok(out)
+    }
 }

@@ -34,19 +34,23 @@
 use std::fmt;
 use std::str::FromStr;
 
-/// The form of the intrinsic reward.
+/// The form of the intrinsic reward. The default of a new run is
+/// [`Intrinsic::HorizonPotential`]: potential-based shaping keeps the task's optimal
+/// policies, so unlike the paper's additive bonus it cannot make standing where E is
+/// high pay more than doing the task (the beacon trap). A `config.toml` without the
+/// field was written when the additive bonus was the default and reads as additive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Intrinsic {
     /// No intrinsic reward.
     None,
     /// beta * E(s_{t+1}).
-    #[default]
     Additive,
     /// beta * (gamma * E(s_{t+1}) - E(s_t)), 0 potential at terminal states.
     Potential,
     /// beta / sqrt(N(s_{t+1})).
     Count,
     /// beta * (gamma * Phi(s_{t+1}) - Phi(s_t)), Phi = sum over h = 1..H of E^h.
+    #[default]
     HorizonPotential,
     /// beta * E(s_{t+1}), paid once per inventory state per episode.
     FirstVisit,

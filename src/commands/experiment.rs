@@ -1,12 +1,17 @@
 //! `fulcrum experiment`: the arms asked for as `train` flag lists, each checked exactly
 //! as `train` will check it, then the experiment run by [`fulcrum_run::experiment`]
-//! (scheduling, resuming, aggregation, report) and its table printed.
+//! (scheduling, resuming, aggregation, report) and its table printed; with `--worlds
+//! gen:N`, the same on every world of a generated set, pooled.
+
+use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Parser;
-use fulcrum_run::bad;
-use fulcrum_run::experiment::{Arm, ExperimentRequest};
+use fulcrum_run::experiment::{prepare_set, Arm, ExperimentRequest, SetRequest, SetWorld};
 use fulcrum_run::plan::plan;
+use fulcrum_run::process::utc_stamp;
+use fulcrum_run::{bad, BadRequest};
+use fulcrum_shared::generate::{GenError, GenSet};
 use fulcrum_shared::View;
 
 use crate::cli::{ExperimentArgs, TrainArgs};
@@ -22,14 +27,11 @@ struct TrainOnly {
 /// The arms asked for: `--arms` (baseline, empowerment) then one per `--beta-sweep` value.
 fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
     let mut out: Vec<Arm> = Vec::new();
-    // The additive form is train's default: its arms name only the beta, as before
-    // there were other forms (so earlier experiment directories still resume).
+    // Every arm with an intrinsic reward names its form: an arm means the same whatever
+    // train's default is (experiment directories from when the additive bonus was the
+    // default, whose additive arms named none, are read as naming it).
     let with_beta = |form: &str, beta: Option<f64>| {
-        let mut v = if form == "additive" {
-            Vec::new()
-        } else {
-            vec!["--intrinsic".to_string(), form.to_string()]
-        };
+        let mut v = vec!["--intrinsic".to_string(), form.to_string()];
         if let Some(b) = beta {
             v.extend(["--beta".into(), b.to_string()]);
         }
@@ -48,6 +50,7 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
                 "--no-empowerment".to_string(),
                 "--no-action-mask".to_string(),
             ],
+            "paper" => vec!["--paper".to_string()],
             "cleanrl" | "rllib" => vec![
                 "--no-empowerment".to_string(),
                 "--ppo-preset".to_string(),
@@ -60,7 +63,7 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
             }
             other => {
                 return bad(format!(
-                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, first-visit, count, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
+                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, first-visit, count, paper, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
                 ))
             }
         };
@@ -144,13 +147,29 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         return bad("--smooth must be at least 1 update");
     }
     let arms = arms(a)?;
+    if let Some(set) = &a.worlds {
+        return run_set(a, set, arms);
+    }
+    let world = a.world.clone().unwrap_or_default();
+    let req = request(a, &world, &arms, a.out.clone())?;
+    let markdown = fulcrum_run::experiment::run(&req)?;
+    print!("{markdown}");
+    Ok(())
+}
 
-    // Check every arm's runs exactly as `train` will, before anything starts.
+/// The experiment of `arms` on `world` (a built-in name or a file), every arm's runs
+/// checked exactly as `train` will check them, before anything starts.
+fn request(
+    a: &ExperimentArgs,
+    world: &str,
+    arms: &[Arm],
+    out: Option<PathBuf>,
+) -> Result<ExperimentRequest> {
     let mut world_hash = String::new();
     let mut steps = 0;
     let mut world_name = String::new();
-    for arm in &arms {
-        let mut argv = vec!["train".to_string(), a.world.clone()];
+    for arm in arms {
+        let mut argv = vec!["train".to_string(), world.to_string()];
         if let Some(s) = a.steps {
             argv.extend(["--steps".into(), s.to_string()]);
         }
@@ -185,9 +204,8 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         world_name = w.name.clone();
         steps = cfg.updates() * cfg.batch() as u64;
     }
-
-    let markdown = fulcrum_run::experiment::run(&ExperimentRequest {
-        world: a.world.clone(),
+    Ok(ExperimentRequest {
+        world: world.to_string(),
         world_name,
         world_hash,
         steps,
@@ -195,11 +213,47 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
         actors: a.actors,
         envs_per_actor: a.envs_per_actor,
         extra: a.train_args.clone(),
-        arms,
+        arms: arms.to_vec(),
         parallel: a.parallel,
-        out: a.out.clone(),
+        out,
         threshold: a.threshold,
         smooth: a.smooth,
+    })
+}
+
+/// `fulcrum experiment --worlds gen:N...`: the set's worlds generated and written, each
+/// world's experiment checked, then all run and pooled.
+fn run_set(a: &ExperimentArgs, set: &str, arms: Vec<Arm>) -> Result<()> {
+    let gen: GenSet = set
+        .parse()
+        .map_err(|e: GenError| BadRequest(format!("--worlds {}", e.0)))?;
+    let worlds = gen
+        .worlds()
+        .map_err(|e| BadRequest(format!("--worlds {}", e.0)))?;
+    let dir = a
+        .out
+        .clone()
+        .unwrap_or_else(|| PathBuf::from("experiments").join(format!("gen-{}", utc_stamp())));
+    let files: Vec<(String, String)> = worlds
+        .iter()
+        .map(|w| (w.world.name.clone(), w.text.clone()))
+        .collect();
+    let (set_dir, paths) = prepare_set(&dir, &gen.to_string(), &files)?;
+    let mut reqs = Vec::with_capacity(worlds.len());
+    for (w, path) in worlds.iter().zip(&paths) {
+        let name = w.world.name.clone();
+        let request = request(a, &path.display().to_string(), &arms, Some(dir.join(&name)))
+            .with_context(|| format!("world {name}"))?;
+        reqs.push(SetWorld {
+            name,
+            fewest_steps: w.fewest_steps,
+            request,
+        });
+    }
+    let markdown = fulcrum_run::experiment::run_set(&SetRequest {
+        description: gen.to_string(),
+        dir: set_dir,
+        worlds: reqs,
     })?;
     print!("{markdown}");
     Ok(())

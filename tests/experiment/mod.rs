@@ -327,12 +327,20 @@ fn a_beta_sweep_runs_one_empowerment_arm_per_beta() {
         .iter()
         .map(|a| a["name"].as_str().unwrap())
         .collect();
-    assert_eq!(names, ["baseline", "beta-0.001", "beta-0.05"]);
+    // The sweep's form is train's default, horizon-potential.
+    assert_eq!(
+        names,
+        [
+            "baseline",
+            "horizon-potential-beta-0.001",
+            "horizon-potential-beta-0.05"
+        ]
+    );
     // Each arm's run was trained with its own beta (the run's resolved config.toml).
     for (arm, beta, emp) in [
         ("baseline", "0.0", "false"),
-        ("beta-0.001", "0.001", "true"),
-        ("beta-0.05", "0.05", "true"),
+        ("horizon-potential-beta-0.001", "0.001", "true"),
+        ("horizon-potential-beta-0.05", "0.05", "true"),
     ] {
         let cfg =
             std::fs::read_to_string(dir.join(format!("runs/{arm}/seed-1/config.toml"))).unwrap();
@@ -344,4 +352,207 @@ fn a_beta_sweep_runs_one_empowerment_arm_per_beta() {
         let rows = read_metrics(&dir.join(format!("runs/{arm}/seed-1/metrics.csv"))).unwrap();
         assert_eq!(rows.last().unwrap().env_steps, 1280);
     }
+}
+
+/// A tiny experiment over two generated worlds: 1 actor x 4 worlds x 32 steps, 10
+/// updates a run.
+const SET: &[&str] = &[
+    "experiment",
+    "--worlds",
+    "gen:2",
+    "--seeds",
+    "2",
+    "--arms",
+    "baseline,additive",
+    "--envs-per-actor",
+    "4",
+    "--steps",
+    "1280",
+];
+
+#[test]
+fn a_set_of_generated_worlds_is_run_per_world_and_pooled() {
+    let dir = TempDir::fresh("set");
+    let run = || {
+        fulcrum()
+            .args(SET)
+            .arg("--out")
+            .arg(&dir)
+            .args(["--", "--steps-per-chunk", "32"])
+            .output()
+            .unwrap()
+    };
+    let out = run();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    // gen:2 is seeds 1 and 2 of `world generate` (both solvable).
+    let names = ["gen-12x8-t3-o2-s1", "gen-12x8-t3-o2-s2"];
+    let pooled: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("summary.json")).unwrap()).unwrap();
+    let mut solved = [0u64; 2];
+    for name in names {
+        assert!(dir.join("worlds").join(format!("{name}.toml")).exists());
+        let s: serde_json::Value =
+            serde_json::from_slice(&std::fs::read(dir.join(name).join("summary.json")).unwrap())
+                .unwrap();
+        for (k, slot) in solved.iter_mut().enumerate() {
+            *slot += s["arms"][k]["reached"].as_u64().unwrap();
+            assert_eq!(s["arms"][k]["finished"], 2);
+        }
+        // Each run trained that world, from its file in the set's directory.
+        let cfg = std::fs::read_to_string(dir.join(name).join("runs/additive/seed-1/config.toml"))
+            .unwrap();
+        assert!(cfg.contains(&format!("world_name = \"{name}\"")), "{cfg}");
+        assert!(cfg.contains("intrinsic = \"additive\""), "{cfg}");
+    }
+    for (k, arm) in ["baseline", "additive"].iter().enumerate() {
+        let a = &pooled["arms"][k];
+        assert_eq!(a["name"], *arm);
+        assert_eq!(a["pairs"], 4);
+        assert_eq!(a["solved"].as_u64().unwrap(), solved[k]);
+        let pairs: Vec<(String, u64)> = a["per_pair"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| {
+                (
+                    p["world"].as_str().unwrap().to_string(),
+                    p["seed"].as_u64().unwrap(),
+                )
+            })
+            .collect();
+        assert_eq!(
+            pairs,
+            [(names[0], 1), (names[0], 2), (names[1], 1), (names[1], 2)]
+                .map(|(w, s)| (w.to_string(), s))
+        );
+    }
+    assert_eq!(pooled["comparisons"][0]["arm"], "additive");
+    let md = std::fs::read_to_string(dir.join("summary.md")).unwrap();
+    assert!(md.contains("| gen-12x8-t3-o2-s1 ("), "{md}");
+
+    // The same command resumes: nothing runs again.
+    let out = run();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert_eq!(stderr.matches("0 to run").count(), 2, "{stderr}");
+
+    // Another set under the same directory is refused, naming the one there.
+    let out = fulcrum()
+        .args([
+            "experiment",
+            "--worlds",
+            "gen:2:seed=5",
+            "--arms",
+            "baseline",
+        ])
+        .arg("--out")
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("a different set needs a directory of its own"),
+        "{stderr}"
+    );
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+}
+
+#[test]
+fn bad_sets_are_refused_in_one_sentence() {
+    let dir = TempDir::fresh("bad-set");
+    for (args, says) in [
+        (
+            vec!["experiment", "--worlds", "gen:0"],
+            "--worlds 'gen:0': the count",
+        ),
+        (
+            vec!["experiment", "--worlds", "exp1-tree"],
+            "does not start with gen:",
+        ),
+        (
+            vec!["experiment", "--worlds", "gen:3:hue=2"],
+            "unknown key 'hue'",
+        ),
+        (
+            vec![
+                "experiment",
+                "--worlds",
+                "gen:2:width=4,height=4,tools=0,objects=1",
+            ],
+            "fewer than the 2 asked for",
+        ),
+    ] {
+        let (code, err) = first_line_and_status(&args, &dir);
+        assert_eq!(code, 2, "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+        assert_eq!(err.trim().lines().count(), 1, "one sentence: {err}");
+        assert!(!dir.exists(), "{args:?} created {}", dir.display());
+    }
+    let (code, err) = first_line_and_status(&["experiment", "room", "--worlds", "gen:2"], &dir);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("cannot be used with"), "{err}");
+}
+
+#[test]
+fn an_experiment_made_when_additive_was_the_default_resumes_as_additive() {
+    let dir = TempDir::fresh("legacy");
+    let cmd = || {
+        let mut c = fulcrum();
+        c.args(["experiment", "room", "--seeds", "1", "--arms", "additive"])
+            .args(["--envs-per-actor", "4", "--steps", "1280", "--out"])
+            .arg(&dir)
+            .args(["--", "--steps-per-chunk", "32"]);
+        c
+    };
+    let out = cmd().output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The file as the version before wrote it: no version, and the additive arm naming
+    // no form (train's default then).
+    let spec = dir.join("experiment.toml");
+    let text = std::fs::read_to_string(&spec).unwrap();
+    assert!(text.contains("version = 2\n"), "{text}");
+    let legacy = text
+        .replace("version = 2\n", "")
+        .replace("\"--intrinsic\",\n    \"additive\",\n", "")
+        .replace("args = [\"--intrinsic\", \"additive\"]", "args = []");
+    assert!(!legacy.contains("--intrinsic"), "{legacy}");
+    std::fs::write(&spec, legacy).unwrap();
+    let out = cmd().output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("0 to run"), "{stderr}");
+    let now = std::fs::read_to_string(&spec).unwrap();
+    assert!(
+        now.contains("version = 2\n") && now.contains("additive"),
+        "{now}"
+    );
+    // The default arm, `empowerment`, is train's default form now, not the additive one.
+    let fresh = TempDir::fresh("legacy-default");
+    let out = fulcrum()
+        .args([
+            "experiment",
+            "room",
+            "--seeds",
+            "1",
+            "--arms",
+            "empowerment",
+        ])
+        .args(["--envs-per-actor", "4", "--steps", "1280", "--out"])
+        .arg(&*fresh)
+        .args(["--", "--steps-per-chunk", "32"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cfg = std::fs::read_to_string(fresh.join("runs/empowerment/seed-1/config.toml")).unwrap();
+    assert!(cfg.contains("intrinsic = \"horizon-potential\""), "{cfg}");
 }

@@ -17,6 +17,7 @@ mod eval;
 mod hang;
 mod poison;
 mod storage;
+mod trap;
 
 /// Small, fast settings: batch = actors * 4 worlds * 32 steps.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
@@ -482,6 +483,7 @@ fn a_killed_service_is_restarted_and_actors_resume() {
     let d = dir.to_str().unwrap();
     let common = [
         &["room", "--actors", "1", "--steps", "256000", "--seed", "7"][..],
+        &["--intrinsic", "additive"][..],
         SMALL,
     ]
     .concat();
@@ -1014,6 +1016,12 @@ fn a_checkpoint_is_never_continued_with_the_other_action_mask() {
     assert_eq!(s.code(), Some(2), "{err}");
     assert!(
         err.contains("--view, --seed cannot be changed (start a new run instead)"),
+        "{err}"
+    );
+    let (s, err, _) = finish(train(&["--resume", d, "--paper"]), Duration::from_secs(60));
+    assert_eq!(s.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--paper cannot be changed (start a new run instead)"),
         "{err}"
     );
     let cfg = dir.join("config.toml");

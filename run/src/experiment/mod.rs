@@ -30,7 +30,10 @@
 
 mod report;
 mod schedule;
+mod set;
 mod summary;
+
+pub use set::{prepare_set, run_set, SetDir, SetRequest, SetWorld};
 
 use std::path::{Path, PathBuf};
 
@@ -56,9 +59,16 @@ pub struct Arm {
     pub args: Vec<String>,
 }
 
+/// The version of `experiment.toml` this code writes: 2 since every arm with an
+/// intrinsic reward names its form (version 1, without the field, relied on `train`'s
+/// default, which was the additive bonus).
+const SPEC_VERSION: u32 = 2;
+
 /// `experiment.toml`: what the runs under the directory are.
 #[derive(Debug, Clone, Serialize, Deserialize)]
 struct Spec {
+    #[serde(default = "legacy_version")]
+    version: u32,
     world: String,
     world_hash: String,
     steps: u64,
@@ -68,6 +78,31 @@ struct Spec {
     /// Flags given to every run (after `--`).
     extra: Vec<String>,
     arms: Vec<Arm>,
+}
+
+fn legacy_version() -> u32 {
+    1
+}
+
+impl Spec {
+    /// A spec read from disk, in this version's terms: the arms of a version-1 file
+    /// that named no form ran the additive bonus, then `train`'s default.
+    fn upgraded(mut self) -> Spec {
+        let names_form = |args: &[String]| {
+            args.iter()
+                .any(|a| a == "--intrinsic" || a == "--no-empowerment" || a == "--paper")
+        };
+        if self.version < 2 && !names_form(&self.extra) {
+            for arm in &mut self.arms {
+                if !names_form(&arm.args) {
+                    arm.args
+                        .splice(0..0, ["--intrinsic".to_string(), "additive".to_string()]);
+                }
+            }
+        }
+        self.version = SPEC_VERSION;
+        self
+    }
 }
 
 /// An experiment to run (or resume, or extend): its arms already checked.
@@ -164,12 +199,37 @@ fn train_args(spec: &Spec, arm: &Arm, job: &Job, resume: bool) -> Vec<String> {
 /// Runs (or resumes) the experiment, then aggregates every finished run into
 /// `summary.{md,json}` and the plots; returns the Markdown summary.
 pub fn run(a: &ExperimentRequest) -> Result<String> {
+    let done = run_one(a)?;
+    let (markdown, failed, dir) = (done.markdown, done.failed, done.dir);
+    if !failed.is_empty() {
+        anyhow::bail!(
+            "{} runs failed ({}); their logs are in {}; run the same command again to retry them",
+            failed.len(),
+            failed.join(", "),
+            dir.join("logs").display()
+        );
+    }
+    Ok(markdown)
+}
+
+/// What [`run_one`] did: the summary (as Markdown and itself), the runs that failed (the
+/// summary pools the finished ones all the same) and the directory.
+struct Done {
+    markdown: String,
+    summary: summary::Summary,
+    failed: Vec<String>,
+    dir: PathBuf,
+}
+
+/// [`run`], with the summary itself and the runs that failed.
+fn run_one(a: &ExperimentRequest) -> Result<Done> {
     let arms = a.arms.clone();
     let world_name = &a.world_name;
     let dir = a.out.clone().unwrap_or_else(|| {
         PathBuf::from("experiments").join(format!("{world_name}-{}", utc_stamp()))
     });
     let mut spec = Spec {
+        version: SPEC_VERSION,
         world: a.world.clone(),
         world_hash: a.world_hash.clone(),
         steps: a.steps,
@@ -193,7 +253,7 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
                     spec_path.display()
                 ))
             })?;
-        spec = merge(old, spec, &spec_path)?;
+        spec = merge(old.upgraded(), spec, &spec_path)?;
     }
     std::fs::create_dir_all(dir.join("logs"))
         .with_context(|| format!("cannot create {}", dir.display()))?;
@@ -260,22 +320,19 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
     );
     let failed = schedule::schedule(&spec, &jobs, &todo, &cpus, parallel, share)?;
 
-    let markdown = summary::aggregate(&spec, &arms, &jobs, a.threshold, a.smooth, &dir)?;
+    let (markdown, summary) = summary::aggregate(&spec, &arms, &jobs, a.threshold, a.smooth, &dir)?;
     eprintln!(
         "summary: {}\nplots: {} {}",
         dir.join("summary.md").display(),
         dir.join("plots/success.png").display(),
         dir.join("plots/return.png").display()
     );
-    if !failed.is_empty() {
-        anyhow::bail!(
-            "{} runs failed ({}); their logs are in {}; run the same command again to retry them",
-            failed.len(),
-            failed.join(", "),
-            dir.join("logs").display()
-        );
-    }
-    Ok(markdown)
+    Ok(Done {
+        markdown,
+        summary,
+        failed,
+        dir,
+    })
 }
 
 /// An existing spec and the new command: the same world, budget, run settings and

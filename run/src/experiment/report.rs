@@ -54,18 +54,20 @@ pub(super) fn markdown(s: &Summary) -> String {
     }
     t += &format!(
         "\nDiagnostics (the last {:.0} % of updates; intrinsic return is the form's term summed over an episode, before beta):\n\n\
-         | arm | intrinsic return per episode | steps with E > 0 | tool pick-up rate | first pick-up at (seeds) |\n|---|---|---|---|---|\n",
+         | arm | intrinsic return per episode | steps with E > 0 | tool pick-up rate | first pick-up at (seeds) | seeds marked as trapped |\n|---|---|---|---|---|---|\n",
         FINAL_FRACTION * 100.0
     );
     for a in &s.arms {
         t += &format!(
-            "| {} | {} | {} | {} | {} ({}/{}) |\n",
+            "| {} | {} | {} | {} | {} ({}/{}) | {}/{} |\n",
             a.name,
             ms(&a.final_intrinsic_return, two),
             ms(&a.final_e_positive, two),
             ms(&a.final_pickup_rate, two),
             ms(&a.first_pickup_step, steps_text),
             a.picked,
+            a.finished,
+            a.trapped,
             a.finished,
         );
     }

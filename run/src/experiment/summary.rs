@@ -6,6 +6,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use fulcrum_learner::metrics::{read_metrics, MetricsRow};
 use fulcrum_learner::paths::RunPaths;
+use fulcrum_learner::trap::TrapDetector;
+use fulcrum_shared::config::RunConfig;
 use serde::Serialize;
 
 use super::report::{draw, markdown};
@@ -48,6 +50,8 @@ pub(super) struct SeedSummary {
     pub(super) final_e_positive: Option<f64>,
     /// Env steps of the first update in which an episode with a pick-up ended.
     pub(super) first_pickup_step: Option<f64>,
+    /// Updates the beacon-trap detector marked (`metrics.csv`'s `trap` column).
+    pub(super) trap_updates: u64,
 }
 
 /// Episode-weighted mean of `f` over the last `frac` of the rows (NaN without episodes).
@@ -95,6 +99,8 @@ pub(super) struct ArmSummary {
     /// Over the seeds that picked a tool up; `picked` says how many did.
     pub(super) first_pickup_step: MeanStd,
     pub(super) picked: usize,
+    /// Seeds with an update the beacon-trap detector marked.
+    pub(super) trapped: usize,
     pub(super) per_seed: Vec<SeedSummary>,
     pub(super) success_mean: Vec<Option<f64>>,
     pub(super) success_std: Vec<Option<f64>>,
@@ -161,7 +167,7 @@ pub(super) fn aggregate(
     threshold: f64,
     smooth: usize,
     dir: &Path,
-) -> Result<String> {
+) -> Result<(String, Summary)> {
     let g = stats::grid(spec.steps as f64, GRID);
     let mut out = Vec::new();
     let mut samples = Vec::new();
@@ -202,7 +208,7 @@ pub(super) fn aggregate(
     fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     draw(&summary, dir)?;
-    Ok(markdown)
+    Ok((markdown, summary))
 }
 
 /// One finished seed's metrics, smoothed and put on the grid `g`.
@@ -235,6 +241,7 @@ fn seed_run(j: &Job, spec: &Spec, g: &[f64], threshold: f64, smooth: usize) -> R
             .iter()
             .find(|r| r.episodes > 0 && r.pickup_rate > 0.0)
             .map(|r| r.env_steps as f64),
+        trap_updates: trap_updates(&j.dir, &rows),
     };
     Ok(SeedRun {
         summary,
@@ -243,6 +250,22 @@ fn seed_run(j: &Job, spec: &Spec, g: &[f64], threshold: f64, smooth: usize) -> R
         auc,
         reach,
     })
+}
+
+/// The updates the beacon-trap detector marks in a run's rows: the detector replayed
+/// over them with the run's form, beta and world (so that runs made before the
+/// detector, or with another version of it, are judged by this one), or the rows' own
+/// `trap` column when the run's configuration or world cannot be read.
+fn trap_updates(dir: &Path, rows: &[MetricsRow]) -> u64 {
+    let paths = RunPaths {
+        dir: dir.to_path_buf(),
+    };
+    let replayed = RunConfig::load(&paths.config()).ok().and_then(|cfg| {
+        let world = fulcrum_shared::load_world(&cfg.world).ok()?;
+        let mut d = TrapDetector::new(cfg.form(), cfg.beta, &world);
+        Some(rows.iter().filter(|r| d.observe(r).is_some()).count() as u64)
+    });
+    replayed.unwrap_or_else(|| rows.iter().filter(|r| r.trap).count() as u64)
 }
 
 /// The median of `x` (NaN when empty).
@@ -312,6 +335,7 @@ fn arm_summary(
         final_e_positive: MeanStd::of(&col(|s| s.final_e_positive)),
         first_pickup_step: MeanStd::of(&col(|s| s.first_pickup_step)),
         picked: col(|s| s.first_pickup_step).len(),
+        trapped: per_seed.iter().filter(|s| s.trap_updates > 0).count(),
         success_mean: sb.iter().map(|b| finite(b.0)).collect(),
         success_std: sb.iter().map(|b| finite(b.1)).collect(),
         return_mean: rb.iter().map(|b| finite(b.0)).collect(),

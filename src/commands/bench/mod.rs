@@ -24,7 +24,7 @@ use fulcrum_shared::fsio::write_atomic;
 use engine::{empowerment_big, empowerment_exp2};
 use service::service_figures;
 pub use service::{client_process, pingpong_echo};
-use training::{chunk_transport, end_to_end, time_to_solve, training_figures};
+use training::{chunk_transport, end_to_end, robustness, time_to_solve, training_figures};
 
 /// One measured figure.
 pub(super) struct Figure {
@@ -132,6 +132,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         chunk_transport(a.quick, &mut figs)?;
         end_to_end(a.quick, &mut figs)?;
         time_to_solve(&mut figs)?;
+        if !a.quick {
+            robustness(&mut figs)?;
+        }
         python::python_figures(a.quick, &mut figs)?;
     }
 
