@@ -334,7 +334,7 @@ pub(crate) fn draw_curve(
     // Legend, right-aligned between the panels: a line sample and a name per series.
     let entries = [
         ("extrinsic return (mean per episode)", EXTRINSIC_LINE),
-        ("E per step (bits, before beta)", INTRINSIC_LINE),
+        ("intrinsic term per step (before beta)", INTRINSIC_LINE),
     ];
     let mut x = f64::from(r.left + r.width);
     let y = l.legend_y;

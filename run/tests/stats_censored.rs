@@ -198,3 +198,45 @@ fn running_std_merges_batches_exactly() {
     assert!((r.mean - 4.0).abs() < 1e-12);
     assert!((r.std() - 10f64.sqrt()).abs() < 1e-12, "{}", r.std());
 }
+
+/// Holm's step-down adjustment: statsmodels' `multipletests(ps, method="holm")`
+/// (scripts/reference/holm_mcnemar.py).
+#[test]
+fn holm_matches_statsmodels() {
+    use fulcrum_run::stats::holm;
+    for (ps, want) in [
+        (vec![0.01, 0.04, 0.03, 0.005], vec![0.03, 0.06, 0.06, 0.02]),
+        (vec![0.069, 0.754, 0.394, 0.456], vec![0.276, 1.0, 1.0, 1.0]),
+        (vec![0.5, 0.5], vec![1.0, 1.0]),
+        (vec![0.001], vec![0.001]),
+    ] {
+        let got = holm(&ps);
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            assert!(close(*g, *w, 1e-12), "holm({ps:?}) = {got:?}, want {want:?}");
+        }
+    }
+    // A NaN (a comparison without a test) is neither adjusted nor counted.
+    let got = holm(&[0.01, f64::NAN, 0.04]);
+    assert!(close(got[0], 0.02, 1e-12) && got[1].is_nan() && close(got[2], 0.04, 1e-12));
+}
+
+/// McNemar's exact test on the discordant pairs: statsmodels' `mcnemar(exact=True)`
+/// and scipy's `binomtest` agree on every value (scripts/reference/holm_mcnemar.py).
+#[test]
+fn mcnemar_exact_matches_statsmodels() {
+    use fulcrum_run::stats::mcnemar_exact;
+    for (b, c, want) in [
+        (0, 0, 1.0),
+        (3, 0, 0.25),
+        (0, 7, 0.015625),
+        (5, 2, 0.453125),
+        (10, 4, 0.1795654296875),
+        (1, 1, 1.0),
+        (20, 9, 0.06142834573984146),
+    ] {
+        let got = mcnemar_exact(b, c);
+        assert!(close(got, want, 1e-9), "mcnemar({b}, {c}) = {got}, want {want}");
+        assert_eq!(got, mcnemar_exact(c, b), "symmetric");
+    }
+}
