@@ -93,6 +93,7 @@ def test_explicit_tool_objects_and_horizons():
     # holding the pickaxe, it can be dug within 3 steps.
     env = EmpowermentReward(
         fulcrum.make_vec("exp1-tree", num_envs=1),
+        form="additive",
         tool="pickaxe",
         objects=["wall"],
         horizons=3,
