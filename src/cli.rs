@@ -342,8 +342,10 @@ pub struct TrainArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
     #[arg(required_unless_present = "resume")]
     pub world: Option<String>,
-    /// Weight of the intrinsic reward [default: the world's [empowerment] beta; 0.05 for
-    /// horizon-potential, 0.1 for first-visit].
+    /// Weight of the intrinsic reward [default: for horizon-potential 0.4 / max Phi, so that
+    /// the shaping along any path pays at most 0.4 (0.05 for a two-state object such as
+    /// the tree at H = 8); 0.1 for first-visit; the world's [empowerment] beta for the
+    /// others].
     #[arg(long, allow_negative_numbers = true)]
     pub beta: Option<f64>,
     /// The baseline: no empowerment service, reward R only (= `--intrinsic none`).

@@ -63,7 +63,8 @@ class EmpowermentReward(gym.vector.VectorWrapper):
     train``'s: potential-based shaping keeps the task's optimal policies, so it cannot
     make standing where E is high pay more than the task, as the additive bonus can),
     ``beta`` (default: the world's for additive and
-    potential, 0.05 for horizon-potential, 0.1 for first-visit), ``tool`` (a tool
+    potential, 0.4 / max Phi for horizon-potential as in training, 0.1 for first-visit),
+    ``tool`` (a tool
     name, ``"all"`` or ``"auto"``: the matrix's selection), ``objects`` (``"tree"``,
     ``"boulder+door"``, a list of names, or ``"agent"``), ``horizons`` (``h`` or
     ``(h_u, h_e)``), ``gamma`` (the potential forms' discount; use your PPO's).

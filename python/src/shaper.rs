@@ -108,8 +108,7 @@ impl Shaper {
     ) -> PyResult<Shaper> {
         let w = engine.world;
         let form = Intrinsic::from_str(s.form).map_err(value_error)?;
-        let beta = s.beta.unwrap_or(form.default_beta(w.empowerment.beta));
-        if !beta.is_finite() {
+        if let Some(beta) = s.beta.filter(|b| !b.is_finite()) {
             return Err(value_error(format!("beta is {beta}: give a finite number")));
         }
         if !(s.gamma.is_finite() && (0.0..=1.0).contains(&s.gamma)) {
@@ -132,12 +131,18 @@ impl Shaper {
             }
         }
         let space_len = engine.space.len();
+        let mut beta = s.beta.unwrap_or(0.0);
         let (values, summary) = if form.uses_empowerment() {
             let set = request::objects_or_default(w, s.objects).py_err()?;
             let tool = request::tool_sel(w, engine, s.tool, &set).py_err()?;
             let values = py
                 .detach(|| engine.lookup_values(tool, &set, hu, he, form.horizon_sum()))
                 .py_err()?;
+            // The largest potential sets horizon-potential's default beta, as in training.
+            let max_phi = values.iter().copied().fold(0.0f32, f32::max) as f64;
+            beta = s
+                .beta
+                .unwrap_or(form.default_beta(w.empowerment.beta, max_phi));
             let what = match tool {
                 ToolSel::All => "all".to_string(),
                 t => t.name(w),
@@ -149,6 +154,7 @@ impl Shaper {
             );
             (values, summary)
         } else {
+            beta = s.beta.unwrap_or(form.default_beta(w.empowerment.beta, 0.0));
             (Vec::new(), format!("{form}: beta {beta}"))
         };
         let init_id = engine.state_id(&w.initial).py_err()?;

@@ -280,10 +280,23 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             .unwrap_or(128),
         learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
         hidden: a.hidden.unwrap_or(64),
-        beta: if form == Intrinsic::None {
-            0.0
-        } else {
-            a.beta.unwrap_or(form.default_beta(e.beta))
+        beta: match (form, a.beta) {
+            (Intrinsic::None, _) => 0.0,
+            (_, Some(b)) => b,
+            (Intrinsic::HorizonPotential, None) => form.default_beta(
+                e.beta,
+                max_potential(
+                    &w,
+                    a.tool.as_ref().and_then(ChannelTool::as_request),
+                    a.objects.as_deref(),
+                    a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
+                    match (fixed, a.horizon_equipped) {
+                        (true, None) => a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
+                        (_, h) => h.unwrap_or(e.horizon_equipped),
+                    },
+                )?,
+            ),
+            (_, None) => form.default_beta(e.beta, 0.0),
         },
         empowerment: form.uses_service(),
         intrinsic: form,
@@ -337,6 +350,24 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         }
     }
     Ok((cfg, w))
+}
+
+/// The largest potential Phi(s) = sum over h = 1..H of E^h(s) over the world's state
+/// space, for the channel the run's service will serve (the same tool, objects and
+/// horizons, resolved the same way): horizon-potential's default beta is
+/// `HORIZON_POTENTIAL_WORTH / max Phi` ([`Intrinsic::default_beta`]).
+fn max_potential(
+    w: &World,
+    tool: Option<&str>,
+    objects: Option<&str>,
+    horizon_unequipped: u32,
+    horizon_equipped: u32,
+) -> Result<f64> {
+    let engine = fulcrum_empowerment::Engine::new(w, fulcrum_empowerment::Limits::default())?;
+    let set = objects_or_default(w, objects)?;
+    let tool = fulcrum_empowerment::request::tool_sel(w, &engine, tool, &set)?;
+    let phi = engine.lookup_values(tool, &set, horizon_unequipped, horizon_equipped, true)?;
+    Ok(phi.iter().copied().fold(0.0f32, f32::max) as f64)
 }
 
 /// An explicit step count must be whole updates: a run never stops in the middle of

@@ -213,7 +213,10 @@ fn holm_matches_statsmodels() {
         let got = holm(&ps);
         assert_eq!(got.len(), want.len());
         for (g, w) in got.iter().zip(&want) {
-            assert!(close(*g, *w, 1e-12), "holm({ps:?}) = {got:?}, want {want:?}");
+            assert!(
+                close(*g, *w, 1e-12),
+                "holm({ps:?}) = {got:?}, want {want:?}"
+            );
         }
     }
     // A NaN (a comparison without a test) is neither adjusted nor counted.
@@ -236,7 +239,10 @@ fn mcnemar_exact_matches_statsmodels() {
         (20, 9, 0.06142834573984146),
     ] {
         let got = mcnemar_exact(b, c);
-        assert!(close(got, want, 1e-9), "mcnemar({b}, {c}) = {got}, want {want}");
+        assert!(
+            close(got, want, 1e-9),
+            "mcnemar({b}, {c}) = {got}, want {want}"
+        );
         assert_eq!(got, mcnemar_exact(c, b), "symmetric");
     }
 }

@@ -34,6 +34,10 @@
 use std::fmt;
 use std::str::FromStr;
 
+/// What the shaping of horizon-potential may pay along a path at most, with the default
+/// beta: beta * max Phi ([`Intrinsic::default_beta`]).
+pub const HORIZON_POTENTIAL_WORTH: f64 = 0.4;
+
 /// The form of the intrinsic reward. The default of a new run is
 /// [`Intrinsic::HorizonPotential`]: potential-based shaping keeps the task's optimal
 /// policies, so unlike the paper's additive bonus it cannot make standing where E is
@@ -80,19 +84,29 @@ impl Intrinsic {
     }
 
     /// The default beta of the form, given the world file's (which is the paper's, for
-    /// the additive bonus). The two forms that pay a bounded amount per episode get a
-    /// beta of their own, because they sum to a few units where the additive bonus sums
-    /// to a bit per step:
+    /// the additive bonus) and, for horizon-potential, the largest potential
+    /// `max_phi` = max over the state space of Phi(s). The two forms that pay a bounded
+    /// amount per episode get a beta of their own, because they sum to a few units where
+    /// the additive bonus sums to a bit per step:
     ///
-    /// * horizon-potential: the shaping terms of a path from Phi = 0 to the object
-    ///   telescope to about beta * H * (bits of the object), 8 steps of the tree for
-    ///   H = 8; beta = 0.05 makes that 0.4, well under the task's reward of 1, while
-    ///   each step closer is paid 0.05, not lost in the value noise.
+    /// * horizon-potential: the shaping terms of a path telescope to
+    ///   beta * (Phi(end) - Phi(start)), at most beta * max Phi. The default keeps that at
+    ///   [`HORIZON_POTENTIAL_WORTH`] = 0.4, well under the task's reward of 1, so that the
+    ///   task stays the larger part of the return on any world: beta = 0.4 / max Phi. For
+    ///   an object with two states, such as the tree, E^h is at most 1 bit and max Phi is
+    ///   H (8 on the exp1 worlds: beta 0.05, each step closer paid 0.05, not lost in the
+    ///   value noise); an object with many states, such as a boulder whose cells the
+    ///   agent can push it to, has a larger Phi (19.5 bits on a generated world, 42.7 on
+    ///   exp3) and gets a smaller beta. Without a positive potential anywhere (no E > 0
+    ///   in the state space) beta is 0.05, the two-state value, and pays nothing.
     /// * first-visit: at most one payment of E (1-2 bits on the paper's worlds) per
     ///   inventory state; beta = 0.1 pays 0.1-0.2, again under the task's reward.
-    pub fn default_beta(self, world_beta: f64) -> f64 {
+    pub fn default_beta(self, world_beta: f64, max_phi: f64) -> f64 {
         match self {
             Intrinsic::None => 0.0,
+            Intrinsic::HorizonPotential if max_phi > 0.0 && max_phi.is_finite() => {
+                HORIZON_POTENTIAL_WORTH / max_phi
+            }
             Intrinsic::HorizonPotential => 0.05,
             Intrinsic::FirstVisit => 0.1,
             _ => world_beta,

@@ -187,3 +187,18 @@ fn first_visit_pays_once_per_inventory_per_episode() {
     );
     assert_eq!([&a[..], &b[..]].concat(), out.to_vec());
 }
+
+#[test]
+fn default_betas_by_form() {
+    // horizon-potential: 0.4 / max Phi; a two-state object at H = 8 (max Phi = 8) gives
+    // 0.05; no potential anywhere falls back to 0.05.
+    assert_eq!(Intrinsic::HorizonPotential.default_beta(0.0009, 8.0), 0.05);
+    assert_eq!(Intrinsic::HorizonPotential.default_beta(0.0009, 20.0), 0.02);
+    assert_eq!(Intrinsic::HorizonPotential.default_beta(0.0009, 0.0), 0.05);
+    // The others ignore the potential: the world's beta, or their own.
+    assert_eq!(Intrinsic::Additive.default_beta(0.0009, 8.0), 0.0009);
+    assert_eq!(Intrinsic::Potential.default_beta(0.0009, 8.0), 0.0009);
+    assert_eq!(Intrinsic::Count.default_beta(0.0009, 8.0), 0.0009);
+    assert_eq!(Intrinsic::FirstVisit.default_beta(0.0009, 8.0), 0.1);
+    assert_eq!(Intrinsic::None.default_beta(0.0009, 8.0), 0.0);
+}

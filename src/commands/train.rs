@@ -52,7 +52,10 @@ pub fn run(a: &TrainArgs) -> Result<()> {
             format!(
                 ", {} intrinsic reward, beta {}{}",
                 cfg.intrinsic,
-                cfg.beta,
+                // Four significant digits (config.toml holds the exact value).
+                format!("{:.4e}", cfg.beta)
+                    .parse::<f64>()
+                    .unwrap_or(cfg.beta),
                 if cfg.horizon_mode == HorizonMode::Fixed {
                     ", one horizon"
                 } else {

@@ -180,3 +180,63 @@ fn paper_is_the_papers_setting_in_one_flag() {
         assert!(!d.exists());
     }
 }
+
+/// A corridor with a boulder east of the agent: with every action (N, E, S, W, apply;
+/// no tool), the boulder can stand on min(h, 3) + 1 cells after exactly h steps (pushed
+/// east up to the wall; any other action stays), most from the start, so
+/// max Phi = sum over h = 1..8 of log2(min(h, 3) + 1) = 1 + log2 3 + 6 * 2.
+const CORRIDOR: &str = r#"name = "corridor"
+max_steps = 20
+map = """
+#######
+#@0...#
+#######
+"""
+
+[empowerment]
+tool = "all"
+objects = ["boulder"]
+horizon_unequipped = 8
+horizon_equipped = 8
+"#;
+
+#[test]
+fn the_default_beta_of_horizon_potential_keeps_a_path_worth_0_4() {
+    let home = TempDir::new("corridor");
+    let world = home.join("corridor.toml");
+    std::fs::write(&world, CORRIDOR).unwrap();
+    let max_phi = 1.0 + 3f64.log2() + 12.0;
+    let d = home.join("run");
+    let (s, err) = train_to(
+        &[world.to_str().unwrap(), "--actors", "1", "--steps", "1024"],
+        &d,
+        60,
+    );
+    assert!(s.success(), "{err}");
+    let cfg = config(&d);
+    let beta: f64 = cfg
+        .lines()
+        .find_map(|l| l.strip_prefix("beta = "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    // The table holds Phi in f32.
+    assert!((beta - 0.4 / max_phi).abs() < 1e-6, "beta {beta}: {cfg}");
+    // An explicit beta is kept as given.
+    let d = home.join("explicit");
+    let (s, err) = train_to(
+        &[
+            world.to_str().unwrap(),
+            "--actors",
+            "1",
+            "--steps",
+            "1024",
+            "--beta",
+            "0.3",
+        ],
+        &d,
+        60,
+    );
+    assert!(s.success(), "{err}");
+    assert!(config(&d).contains("beta = 0.3\n"));
+}
