@@ -131,7 +131,7 @@ impl Shaper {
             }
         }
         let space_len = engine.space.len();
-        let mut beta = s.beta.unwrap_or(0.0);
+        let beta;
         let (values, summary) = if form.uses_empowerment() {
             let set = request::objects_or_default(w, s.objects).py_err()?;
             let tool = request::tool_sel(w, engine, s.tool, &set).py_err()?;
