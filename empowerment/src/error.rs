@@ -51,6 +51,21 @@ pub enum EngineError {
         /// Sequences per state.
         per_state: f64,
     },
+    /// A stochastic channel with too many distinct distributions over states.
+    #[error("the stochastic channel at horizon {h} has {distributions} distinct distributions over states after {level} actions, more than the {max} the engine holds; use a smaller horizon")]
+    ChannelTooLarge {
+        /// Horizon.
+        h: u32,
+        /// Actions taken when it stopped.
+        level: u32,
+        /// Distributions at that level.
+        distributions: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A question asked of a stochastic world that only a deterministic one answers.
+    #[error("{0}")]
+    Deterministic(String),
     /// A state that is not in the world's state space.
     #[error("{0}")]
     NotInSpace(String),
