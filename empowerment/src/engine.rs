@@ -326,7 +326,13 @@ impl<'w> Engine<'w> {
     ) -> Result<Matrix, EngineError> {
         let normal: Vec<u32> = self.space.normal_ids().collect();
         if self.world.is_stochastic() {
-            return self.chance_matrix(columns, horizon_unequipped, horizon_equipped, method, &normal);
+            return self.chance_matrix(
+                columns,
+                horizon_unequipped,
+                horizon_equipped,
+                method,
+                &normal,
+            );
         }
         let n_tools = self.world.tools.len();
         let pairs: Vec<(usize, usize)> = (0..n_tools)
@@ -422,7 +428,8 @@ impl<'w> Engine<'w> {
         let mut gap: f64 = 0.0;
         for (j, row) in values.iter_mut().enumerate() {
             for (c, set) in columns.iter().enumerate() {
-                let caps = self.chance_by_inventory(ToolSel::Tool(j), set, hu, he, normal, method)?;
+                let caps =
+                    self.chance_by_inventory(ToolSel::Tool(j), set, hu, he, normal, method)?;
                 gap = caps.iter().fold(gap, |g, c| g.max(c.gap));
                 let sum: f64 = caps.iter().map(|c| c.bits).sum();
                 row[c] = if normal.is_empty() {
@@ -519,7 +526,10 @@ impl<'w> Engine<'w> {
                 let s = self.world.step(states.last().expect("not empty"), a);
                 states.push(s);
             }
-            let ids: Vec<u32> = states.iter().map(|s| self.state_id(s)).collect::<Result<_, _>>()?;
+            let ids: Vec<u32> = states
+                .iter()
+                .map(|s| self.state_id(s))
+                .collect::<Result<_, _>>()?;
             let caps = self.values_at(tool, set, h, &ids, Method::Dp)?;
             return Ok(states
                 .iter()
@@ -574,7 +584,13 @@ impl<'w> Engine<'w> {
         horizon_sum: bool,
     ) -> Result<Vec<f32>, EngineError> {
         if self.world.is_stochastic() {
-            return self.chance_lookup(tool, set, horizon_unequipped, horizon_equipped, horizon_sum);
+            return self.chance_lookup(
+                tool,
+                set,
+                horizon_unequipped,
+                horizon_equipped,
+                horizon_sum,
+            );
         }
         if horizon_sum {
             // Every horizon 1..=H in one propagation; Phi is their sum (f64, then f32).

@@ -46,8 +46,8 @@ pub mod service;
 pub mod space;
 pub mod stochastic;
 
-pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
 pub use capacity::Capacity;
+pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
 pub use error::EngineError;
 pub use limits::Limits;
 pub use space::StateSpace;

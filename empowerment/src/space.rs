@@ -411,7 +411,9 @@ impl StateSpace {
 
     /// Approximate bytes held.
     pub fn bytes(&self) -> usize {
-        self.len() * bytes_per_state(self.actions) + self.out_start.len() * 4 + self.out_ids.len() * 12
+        self.len() * bytes_per_state(self.actions)
+            + self.out_start.len() * 4
+            + self.out_ids.len() * 12
     }
 }
 

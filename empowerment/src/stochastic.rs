@@ -84,9 +84,11 @@ impl<'a> Chance<'a> {
                     }
                     let pt = proj.ids[t as usize];
                     let hit = actions.iter().any(|&a| {
-                        space.outcomes(t, a).0.iter().any(|&u| {
-                            proj.ids[u as usize] != pt || dist[u as usize] < r
-                        })
+                        space
+                            .outcomes(t, a)
+                            .0
+                            .iter()
+                            .any(|&u| proj.ids[u as usize] != pt || dist[u as usize] < r)
                     });
                     if hit {
                         r

@@ -396,10 +396,7 @@ fn rules(
                 _ => {
                     return Err(cx.at(
                         v.span().start,
-                        format!(
-                            "p = {} must be a number above 0 and at most 1",
-                            v.get_ref()
-                        ),
+                        format!("p = {} must be a number above 0 and at most 1", v.get_ref()),
                     ))
                 }
             },

@@ -42,28 +42,28 @@ fn expect_at(text: &str, line: usize, col: usize, words: &[&str]) {
 /// (line 11 on).
 fn room(extra: &[&str]) -> String {
     let mut ls = vec![
-        "name = \"t\"",      // 1
-        "map = \"\"\"",      // 2
-        "#######",           // 3
-        "#@a..T#",           // 4
-        "#.....#",           // 5
-        "#######",           // 6
-        "\"\"\"",            // 7
-        "",                  // 8
-        "[tools]",           // 9
-        "a = \"axe\"",       // 10
+        "name = \"t\"", // 1
+        "map = \"\"\"", // 2
+        "#######",      // 3
+        "#@a..T#",      // 4
+        "#.....#",      // 5
+        "#######",      // 6
+        "\"\"\"",       // 7
+        "",             // 8
+        "[tools]",      // 9
+        "a = \"axe\"",  // 10
     ];
     ls.extend_from_slice(extra);
     lines(&ls)
 }
 
 const AXE_TREE: [&str; 6] = [
-    "[[rules]]",            // 11
-    "tool = \"axe\"",       // 12
-    "target = \"tree\"",    // 13
-    "from = \"intact\"",    // 14
-    "to = \"destroyed\"",   // 15
-    "range = 1",            // 16
+    "[[rules]]",          // 11
+    "tool = \"axe\"",     // 12
+    "target = \"tree\"",  // 13
+    "from = \"intact\"",  // 14
+    "to = \"destroyed\"", // 15
+    "range = 1",          // 16
 ];
 
 #[test]
@@ -78,7 +78,10 @@ fn dynamics_and_p_are_read() {
     assert_eq!(w.slip, 0.0);
     // It set the default rule's p and added no rule.
     assert_eq!(w.rules.len(), fulcrum_shared::world::default_rules().len());
-    let r = w.rules.iter().find(|r| r.tool == "axe" && r.target.name() == "tree");
+    let r = w
+        .rules
+        .iter()
+        .find(|r| r.tool == "axe" && r.target.name() == "tree");
     assert_eq!(r.unwrap().p, 0.5);
     // slip = 0 (an integer) and p = 1 written out: deterministic.
     let mut extra = AXE_TREE.to_vec();
@@ -95,8 +98,18 @@ fn dynamics_and_p_are_read() {
 #[test]
 fn bad_dynamics_and_p_are_placed() {
     // `slip = 1` on line 12: the value at column 8.
-    expect_at(&room(&["[dynamics]", "slip = 1"]), 12, 8, &["slip = 1", "below 1"]);
-    expect_at(&room(&["[dynamics]", "slip = -0.1"]), 12, 8, &["slip = -0.1"]);
+    expect_at(
+        &room(&["[dynamics]", "slip = 1"]),
+        12,
+        8,
+        &["slip = 1", "below 1"],
+    );
+    expect_at(
+        &room(&["[dynamics]", "slip = -0.1"]),
+        12,
+        8,
+        &["slip = -0.1"],
+    );
     expect_at(&room(&["[dynamics]", "slip = \"a lot\""]), 12, 8, &["slip"]);
     // An unknown key in [dynamics]: `wind` on line 12, column 1.
     expect_at(&room(&["[dynamics]", "wind = 0.1"]), 12, 1, &["wind"]);
@@ -166,7 +179,10 @@ fn a_rule_acts_with_its_probability() {
     assert_eq!(out[0].0.objects[0], 2, "destroyed first");
     assert!((out[0].1 - 0.8).abs() < 1e-15 && (out[1].1 - 0.2).abs() < 1e-12);
     assert_eq!(out[1].0.objects[0], 0, "or intact");
-    assert!(out.iter().all(|(t, _)| t.mode == 0), "back to normal mode either way");
+    assert!(
+        out.iter().all(|(t, _)| t.mode == 0),
+        "back to normal mode either way"
+    );
     // A direction where no rule acts: one outcome.
     w.outcomes(&s, SOUTH, &mut out);
     assert_eq!(out.len(), 1);
@@ -200,7 +216,10 @@ fn chi_square(w: &World, s: &State, a: u8, n: usize, seed: u64) -> (f64, usize) 
     let mut rng = SplitMix(seed);
     for _ in 0..n {
         let t = w.step_sampled(s, a, rng.next());
-        let k = out.iter().position(|(o, _)| *o == t).expect("a listed outcome");
+        let k = out
+            .iter()
+            .position(|(o, _)| *o == t)
+            .expect("a listed outcome");
         counts[k] += 1;
     }
     let chi = counts

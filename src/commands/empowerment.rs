@@ -327,9 +327,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
         .iter()
         .enumerate()
         .map(|(t, s)| match &te {
-            Some(te) if r.tool.held(&s.state) => {
-                (s.action, s.state, te[t].value, he, te[t].gap)
-            }
+            Some(te) if r.tool.held(&s.state) => (s.action, s.state, te[t].value, he, te[t].gap),
             _ => (s.action, s.state, s.value, hu, s.gap),
         })
         .collect();

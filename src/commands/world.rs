@@ -122,7 +122,10 @@ fn show(name: &str, as_json: bool) -> Result<()> {
                 .iter()
                 .map(|r| format!("{} (p {})", rule_text(r), r.p))
                 .collect();
-            parts.push(format!("rules act with a probability: {}", rules.join(", ")));
+            parts.push(format!(
+                "rules act with a probability: {}",
+                rules.join(", ")
+            ));
         }
         println!("chance       {}", parts.join("; "));
     } else {
