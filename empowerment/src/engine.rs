@@ -270,7 +270,14 @@ impl<'w> Engine<'w> {
         match method {
             Method::Dp => {
                 let proj = Projection::new(&self.space, set);
-                Chance::new(&self.space, &proj, &actions, h).values(ids, h)
+                Chance::new(
+                    &self.space,
+                    &proj,
+                    &actions,
+                    h,
+                    self.limits.max_bytes.saturating_sub(self.space.bytes()),
+                )
+                .values(ids, h)
             }
             Method::Enumerate => {
                 check_enumerable(actions.len(), &[h], ids.len())?;
@@ -636,7 +643,13 @@ impl<'w> Engine<'w> {
             }
             let actions = tool.actions(self.world);
             let proj = Projection::new(&self.space, set);
-            let chance = Chance::new(&self.space, &proj, &actions, h);
+            let chance = Chance::new(
+                &self.space,
+                &proj,
+                &actions,
+                h,
+                self.limits.max_bytes.saturating_sub(self.space.bytes()),
+            );
             let mut phi = vec![0.0f64; ids.len()];
             for k in 1..=h {
                 for (p, c) in phi.iter_mut().zip(chance.values(&ids, k)?) {

@@ -29,7 +29,9 @@
 //! ([`crate::propagate`]) instead; the engine picks the method.
 //!
 //! Cost: per state, the sum over levels of (distinct distributions x |A_j| x support x
-//! outcomes), parallel over start states; memory one level's distributions.
+//! outcomes), parallel over start states, then the capacity of (distinct rows x
+//! outputs). Memory: one level's distributions and its channel, within the engine's
+//! limit shared by the threads (refused with [`EngineError::ChannelTooLarge`] beyond).
 
 use fulcrum_shared::hash::{FastMap, FastSet};
 use rayon::prelude::*;
@@ -39,8 +41,9 @@ use crate::error::EngineError;
 use crate::propagate::Projection;
 use crate::space::StateSpace;
 
-/// Distributions one level may hold before a value is refused.
-pub const MAX_LEVEL: usize = 1 << 21;
+/// Bytes a level's distribution entry costs: the entry, its key in the merge set, and
+/// their share of the vectors' headers.
+const ENTRY_BYTES: usize = 40;
 
 /// "Never within the horizon" for [`Chance::dist`].
 const FAR: u8 = u8::MAX;
@@ -53,6 +56,8 @@ pub struct Chance<'a> {
     actions: &'a [u8],
     /// Fewest steps after which the projection may change, `FAR` beyond `hmax`.
     dist: Vec<u8>,
+    /// Bytes one value's levels may take (the values are computed in parallel).
+    max_bytes: usize,
 }
 
 /// A distribution over nodes: states `< n`, and sinks `n + y` for projection value y;
@@ -69,8 +74,15 @@ fn key(d: &Dist) -> Vec<(u32, u64)> {
 }
 
 impl<'a> Chance<'a> {
-    /// Prepare the channel of `actions` onto `proj` for horizons up to `hmax`.
-    pub fn new(space: &'a StateSpace, proj: &'a Projection, actions: &'a [u8], hmax: u32) -> Self {
+    /// Prepare the channel of `actions` onto `proj` for horizons up to `hmax`; the
+    /// values computed at once may take `max_bytes` together.
+    pub fn new(
+        space: &'a StateSpace,
+        proj: &'a Projection,
+        actions: &'a [u8],
+        hmax: u32,
+        max_bytes: usize,
+    ) -> Self {
         let n = space.len();
         let mut dist = vec![FAR; n];
         // dist(t) = 1 + min over (a, t') of (0 if proj(t') != proj(t) else dist(t')).
@@ -108,6 +120,7 @@ impl<'a> Chance<'a> {
             proj,
             actions,
             dist,
+            max_bytes: max_bytes / rayon::current_num_threads().max(1),
         }
     }
 
@@ -134,6 +147,7 @@ impl<'a> Chance<'a> {
             let r = h - k - 1;
             let mut seen: FastSet<Vec<(u32, u64)>> = FastSet::default();
             let mut next: Vec<Dist> = Vec::new();
+            let mut entries = 0usize;
             for mu in &level {
                 let frozen = mu.iter().all(|&(t, _)| t >= n);
                 for &a in self.actions {
@@ -157,20 +171,23 @@ impl<'a> Chance<'a> {
                     let mut nu: Dist = acc.iter().map(|(&t, &p)| (t, p)).collect();
                     nu.sort_unstable_by_key(|e| e.0);
                     if seen.insert(key(&nu)) {
+                        entries += nu.len();
                         next.push(nu);
+                        let bytes = (entries + next.len() * m.min(64)) * ENTRY_BYTES;
+                        if bytes > self.max_bytes {
+                            return Err(EngineError::ChannelTooLarge {
+                                h,
+                                level: k + 1,
+                                distributions: next.len(),
+                                bytes,
+                                limit: self.max_bytes,
+                            });
+                        }
                     }
                     if frozen {
                         break;
                     }
                 }
-            }
-            if next.len() > MAX_LEVEL {
-                return Err(EngineError::ChannelTooLarge {
-                    h,
-                    level: k + 1,
-                    distributions: next.len(),
-                    max: MAX_LEVEL,
-                });
             }
             level = next;
         }

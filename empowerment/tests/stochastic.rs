@@ -332,3 +332,35 @@ fn lookup_tables_of_a_stochastic_world() {
     }
     assert!(table.iter().any(|&v| v > 0.0));
 }
+
+// A channel too large for the memory limit is refused with a sentence, not computed
+// until the machine runs out: exp1-tree-slip, D = agent, h = 6, with little to spare.
+#[test]
+fn a_channel_over_the_memory_limit_is_refused() {
+    let w = load_world("exp1-tree-slip").unwrap();
+    // What enumeration asks of a stochastic space (its estimate per state, with four
+    // outcomes of 12 bytes per action), and 64 KiB more.
+    let n = Engine::new(&w, Limits::default()).unwrap().space.len();
+    let na = w.num_actions();
+    let per_state = fulcrum_empowerment::space::bytes_per_state(na) + na * 48;
+    let tight = Limits {
+        max_bytes: n * per_state + (64 << 10),
+    };
+    let e = Engine::new(&w, tight).unwrap();
+    let id = e.state_id(&w.parse_state("agent=5,3").unwrap()).unwrap();
+    let err = e
+        .values_at(ToolSel::Tool(0), &ObjectSet::Agent, 6, &[id], Method::Dp)
+        .unwrap_err();
+    let msg = err.to_string();
+    assert!(
+        matches!(
+            err,
+            fulcrum_empowerment::EngineError::ChannelTooLarge { .. }
+        ),
+        "{msg}"
+    );
+    assert!(
+        msg.contains("memory limit") && msg.contains("horizon 6"),
+        "{msg}"
+    );
+}
