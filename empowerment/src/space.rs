@@ -15,9 +15,10 @@
 //!
 //! A stochastic world (`fulcrum_shared::chance`) is enumerated over every outcome with
 //! positive probability, and keeps its transition distributions as well: for state s
-//! and action a, the outcomes `trans_range(s, a)` of [`StateSpace::outcome_ids`] and
-//! [`StateSpace::outcome_probs`] (12 B per outcome, at most 4 per pair). Its successor
-//! table holds the intended outcome ([`World::step`]), one of them.
+//! and action a, [`StateSpace::outcomes`] gives the ids and probabilities of the
+//! outcomes (12 B per outcome, at most 4 per pair, in one offset table of `4 |A|` B per
+//! state). Its successor table holds the intended outcome ([`World::step`]), one of
+//! them.
 
 use std::collections::hash_map::Entry;
 

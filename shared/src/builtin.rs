@@ -1,8 +1,9 @@
 //! The built-in worlds, embedded in the binary under their names.
 //!
-//! The files in `worlds/`: the paper's four worlds and `room` ([`NAMES`], all
-//! deterministic), and two of them with chance ([`STOCHASTIC`]: moves slip, rules act
-//! with a probability; `docs/world.md`, "Stochastic worlds").
+//! The files in `worlds/`: the paper's four worlds and `room`
+//! ([`NAMES`](crate::builtin::NAMES), all deterministic), and two of them with chance
+//! ([`STOCHASTIC`](crate::builtin::STOCHASTIC): moves slip, rules act with a
+//! probability; `docs/world.md`, "Stochastic worlds").
 
 /// Names of the deterministic built-in worlds (the paper's four and `room`).
 pub const NAMES: [&str; 5] = ["exp1-tree", "exp1-wall", "exp2", "exp3", "room"];
