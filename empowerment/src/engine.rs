@@ -5,15 +5,21 @@
 //! of the space, with `h = horizon_equipped` where tool j is held and
 //! `horizon_unequipped` elsewhere (`docs/world.md`). Tool selection for a column is its argmax,
 //! ties to the lower tool index, a column of zeros selects no tool (equation 6).
+//!
+//! In a stochastic world every value is a channel capacity ([`crate::stochastic`]) and
+//! comes with a gap: the capacity lies in `[value, value + gap]`; the gap is 0 wherever
+//! the value is exact (deterministic worlds, the closed form of two outputs).
 
 use fulcrum_shared::{Mode, ObjectSet, State, World};
 use rayon::prelude::*;
 
+use crate::capacity::Capacity;
 use crate::enumerate;
 use crate::error::EngineError;
 use crate::limits::Limits;
 use crate::propagate::{check_table, reachable_counts, Projection};
 use crate::space::StateSpace;
+use crate::stochastic::Chance;
 
 /// Whose actions drive the channel.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -82,6 +88,8 @@ pub struct Matrix {
     pub selection: Vec<Option<usize>>,
     /// Normal-mode states averaged over.
     pub normal_states: usize,
+    /// The largest gap of the values averaged (bits; 0 in a deterministic world).
+    pub gap: f64,
 }
 
 /// argmax with ties to the lower index; all zero -> None.
@@ -101,6 +109,8 @@ pub fn select(column: impl IntoIterator<Item = f64>) -> Option<usize> {
 pub struct Landscape {
     /// `values[y][x]`.
     pub values: Vec<Vec<Option<f64>>>,
+    /// The largest gap of the values (bits; 0 in a deterministic world).
+    pub gap: f64,
 }
 
 /// One step of a trace.
@@ -112,6 +122,8 @@ pub struct TraceStep {
     pub state: State,
     /// E at that state.
     pub value: f64,
+    /// Its gap (bits; 0 in a deterministic world).
+    pub gap: f64,
 }
 
 /// One world's state space and the questions asked of it.
@@ -149,6 +161,12 @@ impl<'w> Engine<'w> {
         horizons: &[u32],
         method: Method,
     ) -> Result<Vec<Vec<u32>>, EngineError> {
+        if self.world.is_stochastic() {
+            return Err(EngineError::Deterministic(format!(
+                "world '{}' is stochastic: its empowerment is a channel capacity, not a count of outcomes",
+                self.world.name
+            )));
+        }
         let actions = tool.actions(self.world);
         let hmax = horizons.iter().copied().max().unwrap_or(0);
         match method {
@@ -196,8 +214,113 @@ impl<'w> Engine<'w> {
         h: u32,
         method: Method,
     ) -> Result<Vec<f64>, EngineError> {
+        if self.world.is_stochastic() {
+            return Ok(self.values_gap(tool, set, h, method)?.0);
+        }
         let c = self.counts(tool, set, &[h], method)?;
         Ok(c[0].iter().map(|&n| (n as f64).log2()).collect())
+    }
+
+    /// E^h(s) in bits for every state, and each value's gap (all 0 in a deterministic
+    /// world).
+    pub fn values_gap(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        method: Method,
+    ) -> Result<(Vec<f64>, Vec<f64>), EngineError> {
+        if !self.world.is_stochastic() {
+            let v = self.values(tool, set, h, method)?;
+            let n = v.len();
+            return Ok((v, vec![0.0; n]));
+        }
+        let ids: Vec<u32> = (0..self.space.len() as u32).collect();
+        let c = self.values_at(tool, set, h, &ids, method)?;
+        Ok(c.iter().map(|c| (c.bits, c.gap)).unzip())
+    }
+
+    /// E^h at the states `ids`, with their gaps. A stochastic world computes only
+    /// these states; a deterministic one reads them from its table.
+    pub fn values_at(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        h: u32,
+        ids: &[u32],
+        method: Method,
+    ) -> Result<Vec<Capacity>, EngineError> {
+        if !self.world.is_stochastic() {
+            let v = self.values(tool, set, h, method)?;
+            return Ok(ids
+                .iter()
+                .map(|&i| Capacity {
+                    bits: v[i as usize],
+                    gap: 0.0,
+                })
+                .collect());
+        }
+        if h > fulcrum_shared::MAX_HORIZON {
+            return Err(EngineError::HorizonTooLarge {
+                h,
+                max: fulcrum_shared::MAX_HORIZON,
+            });
+        }
+        let actions = tool.actions(self.world);
+        match method {
+            Method::Dp => {
+                let proj = Projection::new(&self.space, set);
+                Chance::new(
+                    &self.space,
+                    &proj,
+                    &actions,
+                    h,
+                    self.limits.max_bytes.saturating_sub(self.space.bytes()),
+                )
+                .values(ids, h)
+            }
+            Method::Enumerate => {
+                check_enumerable(actions.len(), &[h], ids.len())?;
+                Ok(ids
+                    .par_iter()
+                    .map(|&i| {
+                        enumerate::stochastic_value(
+                            self.world,
+                            self.space.state(i),
+                            &actions,
+                            set,
+                            h,
+                        )
+                    })
+                    .collect())
+            }
+        }
+    }
+
+    /// E at the states `ids` of a stochastic world with the horizon by inventory:
+    /// `he` where `tool` is held, `hu` elsewhere.
+    fn chance_by_inventory(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        hu: u32,
+        he: u32,
+        ids: &[u32],
+        method: Method,
+    ) -> Result<Vec<Capacity>, EngineError> {
+        let (held, free): (Vec<usize>, Vec<usize>) =
+            (0..ids.len()).partition(|&k| tool.held(self.space.state(ids[k])));
+        let mut out = vec![Capacity::default(); ids.len()];
+        for (part, h) in [(free, hu), (held, he)] {
+            if part.is_empty() {
+                continue;
+            }
+            let sub: Vec<u32> = part.iter().map(|&k| ids[k]).collect();
+            for (k, c) in part.iter().zip(self.values_at(tool, set, h, &sub, method)?) {
+                out[*k] = c;
+            }
+        }
+        Ok(out)
     }
 
     /// The matrix over every tool of the world and the given columns.
@@ -209,6 +332,15 @@ impl<'w> Engine<'w> {
         method: Method,
     ) -> Result<Matrix, EngineError> {
         let normal: Vec<u32> = self.space.normal_ids().collect();
+        if self.world.is_stochastic() {
+            return self.chance_matrix(
+                columns,
+                horizon_unequipped,
+                horizon_equipped,
+                method,
+                &normal,
+            );
+        }
         let n_tools = self.world.tools.len();
         let pairs: Vec<(usize, usize)> = (0..n_tools)
             .flat_map(|j| (0..columns.len()).map(move |c| (j, c)))
@@ -284,6 +416,46 @@ impl<'w> Engine<'w> {
             values,
             selection,
             normal_states: normal.len(),
+            gap: 0.0,
+        })
+    }
+
+    /// [`Engine::matrix`] of a stochastic world: each entry the mean capacity over the
+    /// normal states, one entry after another (each is parallel over states).
+    fn chance_matrix(
+        &self,
+        columns: &[ObjectSet],
+        hu: u32,
+        he: u32,
+        method: Method,
+        normal: &[u32],
+    ) -> Result<Matrix, EngineError> {
+        let n_tools = self.world.tools.len();
+        let mut values = vec![vec![0.0; columns.len()]; n_tools];
+        let mut gap: f64 = 0.0;
+        for (j, row) in values.iter_mut().enumerate() {
+            for (c, set) in columns.iter().enumerate() {
+                let caps =
+                    self.chance_by_inventory(ToolSel::Tool(j), set, hu, he, normal, method)?;
+                gap = caps.iter().fold(gap, |g, c| g.max(c.gap));
+                let sum: f64 = caps.iter().map(|c| c.bits).sum();
+                row[c] = if normal.is_empty() {
+                    0.0
+                } else {
+                    sum / normal.len() as f64
+                };
+            }
+        }
+        let selection = (0..columns.len())
+            .map(|c| select(values.iter().map(|row| row[c])))
+            .collect();
+        Ok(Matrix {
+            tools: self.world.tools.iter().map(|t| t.name.clone()).collect(),
+            columns: columns.iter().map(|c| set_name(self.world, c)).collect(),
+            values,
+            selection,
+            normal_states: normal.len(),
+            gap,
         })
     }
 
@@ -311,6 +483,20 @@ impl<'w> Engine<'w> {
         let cells: Vec<Option<u32>> = (0..w * hgt)
             .map(|c| self.space.id(&self.landscape_state(c % w, c / w, holding)))
             .collect();
+        if self.world.is_stochastic() {
+            let ids: Vec<u32> = cells.iter().flatten().copied().collect();
+            let caps = self.values_at(tool, set, h, &ids, method)?;
+            let gap = caps.iter().fold(0.0f64, |g, c| g.max(c.gap));
+            let mut it = caps.iter();
+            let vals: Vec<Option<f64>> = cells
+                .iter()
+                .map(|c| c.map(|_| it.next().expect("one value per id").bits))
+                .collect();
+            return Ok(Landscape {
+                values: vals.chunks(w).map(|r| r.to_vec()).collect(),
+                gap,
+            });
+        }
         let vals: Vec<Option<f64>> = match method {
             Method::Dp => {
                 let v = self.values(tool, set, h, method)?;
@@ -328,6 +514,7 @@ impl<'w> Engine<'w> {
         };
         Ok(Landscape {
             values: vals.chunks(w).map(|r| r.to_vec()).collect(),
+            gap: 0.0,
         })
     }
 
@@ -339,6 +526,30 @@ impl<'w> Engine<'w> {
         h: u32,
         actions: &[u8],
     ) -> Result<Vec<TraceStep>, EngineError> {
+        if self.world.is_stochastic() {
+            // The intended outcome of each action ([`World::step`]), valued there only.
+            let mut states = vec![self.world.initial];
+            for &a in actions {
+                let s = self.world.step(states.last().expect("not empty"), a);
+                states.push(s);
+            }
+            let ids: Vec<u32> = states
+                .iter()
+                .map(|s| self.state_id(s))
+                .collect::<Result<_, _>>()?;
+            let caps = self.values_at(tool, set, h, &ids, Method::Dp)?;
+            return Ok(states
+                .iter()
+                .zip(caps)
+                .enumerate()
+                .map(|(t, (s, c))| TraceStep {
+                    action: t.checked_sub(1).map(|k| actions[k]),
+                    state: *s,
+                    value: c.bits,
+                    gap: c.gap,
+                })
+                .collect());
+        }
         let v = self.values(tool, set, h, Method::Dp)?;
         let mut s = self.world.initial;
         let mut out = Vec::with_capacity(actions.len() + 1);
@@ -351,6 +562,7 @@ impl<'w> Engine<'w> {
             action: None,
             state: s,
             value: v[id(&s) as usize],
+            gap: 0.0,
         });
         for &a in actions {
             s = self.world.step(&s, a);
@@ -358,6 +570,7 @@ impl<'w> Engine<'w> {
                 action: Some(a),
                 state: s,
                 value: v[id(&s) as usize],
+                gap: 0.0,
             });
         }
         Ok(out)
@@ -377,6 +590,15 @@ impl<'w> Engine<'w> {
         horizon_equipped: u32,
         horizon_sum: bool,
     ) -> Result<Vec<f32>, EngineError> {
+        if self.world.is_stochastic() {
+            return self.chance_lookup(
+                tool,
+                set,
+                horizon_unequipped,
+                horizon_equipped,
+                horizon_sum,
+            );
+        }
         if horizon_sum {
             // Every horizon 1..=H in one propagation; Phi is their sum (f64, then f32).
             let h = horizon_unequipped.max(horizon_equipped);
@@ -401,6 +623,48 @@ impl<'w> Engine<'w> {
             .collect())
     }
 
+    /// [`Engine::lookup_values`] of a stochastic world.
+    fn chance_lookup(
+        &self,
+        tool: ToolSel,
+        set: &ObjectSet,
+        hu: u32,
+        he: u32,
+        horizon_sum: bool,
+    ) -> Result<Vec<f32>, EngineError> {
+        let ids: Vec<u32> = (0..self.space.len() as u32).collect();
+        if horizon_sum {
+            let h = hu.max(he);
+            if h > fulcrum_shared::MAX_HORIZON {
+                return Err(EngineError::HorizonTooLarge {
+                    h,
+                    max: fulcrum_shared::MAX_HORIZON,
+                });
+            }
+            let actions = tool.actions(self.world);
+            let proj = Projection::new(&self.space, set);
+            let chance = Chance::new(
+                &self.space,
+                &proj,
+                &actions,
+                h,
+                self.limits.max_bytes.saturating_sub(self.space.bytes()),
+            );
+            let mut phi = vec![0.0f64; ids.len()];
+            for k in 1..=h {
+                for (p, c) in phi.iter_mut().zip(chance.values(&ids, k)?) {
+                    *p += c.bits;
+                }
+            }
+            return Ok(phi.into_iter().map(|v| v as f32).collect());
+        }
+        Ok(self
+            .chance_by_inventory(tool, set, hu, he, &ids, Method::Dp)?
+            .into_iter()
+            .map(|c| c.bits as f32)
+            .collect())
+    }
+
     /// The id of a state, or why it is not in the state space.
     pub fn state_id(&self, s: &State) -> Result<u32, EngineError> {
         self.space.id(s).ok_or_else(|| {
@@ -422,6 +686,9 @@ impl<'w> Engine<'w> {
         method: Method,
     ) -> Result<f64, EngineError> {
         let id = self.state_id(s)?;
+        if self.world.is_stochastic() {
+            return Ok(self.values_at(tool, set, h, &[id], method)?[0].bits);
+        }
         match method {
             Method::Dp => Ok(self.values(tool, set, h, method)?[id as usize]),
             Method::Enumerate => {

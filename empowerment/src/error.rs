@@ -51,6 +51,23 @@ pub enum EngineError {
         /// Sequences per state.
         per_state: f64,
     },
+    /// A stochastic channel whose distributions over states outgrow the memory limit.
+    #[error("the stochastic channel at horizon {h} has {distributions} distinct distributions over states after {level} actions, about {bytes_h}, over the memory limit of {limit_h} per thread; use a smaller horizon", bytes_h = human_bytes(*bytes), limit_h = human_bytes(*limit))]
+    ChannelTooLarge {
+        /// Horizon.
+        h: u32,
+        /// Actions taken when it stopped.
+        level: u32,
+        /// Distributions at that level.
+        distributions: usize,
+        /// Estimated bytes.
+        bytes: usize,
+        /// The limit per thread.
+        limit: usize,
+    },
+    /// A question asked of a stochastic world that only a deterministic one answers.
+    #[error("{0}")]
+    Deterministic(String),
     /// A state that is not in the world's state space.
     #[error("{0}")]
     NotInSpace(String),

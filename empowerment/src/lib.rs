@@ -8,7 +8,9 @@
 //!
 //! [`Engine`] enumerates the states once, then answers by set propagation
 //! ([`propagate`]), with the paper's sequence enumeration ([`enumerate`]) as the
-//! reference.
+//! reference. In a stochastic world E is the capacity of the channel from action
+//! sequences to the objects' projection, computed by distribution propagation
+//! ([`stochastic`]) and [`capacity`].
 //!
 //! ```
 //! use fulcrum_empowerment::{Engine, Limits, Method};
@@ -25,12 +27,15 @@
 //! - [`engine`]: the engine: values, matrix, tool selection, landscapes, traces, queries;
 //! - [`space`]: state-space enumeration and the successor table;
 //! - [`propagate`]: set propagation, the fast exact method;
+//! - [`stochastic`]: distribution propagation, the exact method of stochastic worlds;
+//! - [`capacity`]: channel capacity in bits (closed form of two outputs, Blahut-Arimoto);
 //! - [`enumerate`]: the reference method, every action sequence;
 //! - [`limits`]: memory limits, checked before a computation starts;
 //! - [`request`]: reading what a request names (object sets, tools, inventories);
 //! - [`error`]: the engine's errors;
 //! - [`service`]: the empowerment service and its client (iceoryx2 request-response).
 
+pub mod capacity;
 pub mod engine;
 pub mod enumerate;
 pub mod error;
@@ -39,7 +44,9 @@ pub mod propagate;
 pub mod request;
 pub mod service;
 pub mod space;
+pub mod stochastic;
 
+pub use capacity::Capacity;
 pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
 pub use error::EngineError;
 pub use limits::Limits;

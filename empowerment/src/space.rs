@@ -12,6 +12,13 @@
 //!
 //! Memory: `states` (38 B each), the successor table (`4 |A|` B each) and the index
 //! (16 to 60 B each): at most `100 + 4 |A|` bytes per state.
+//!
+//! A stochastic world (`fulcrum_shared::chance`) is enumerated over every outcome with
+//! positive probability, and keeps its transition distributions as well: for state s
+//! and action a, [`StateSpace::outcomes`] gives the ids and probabilities of the
+//! outcomes (12 B per outcome, at most 4 per pair, in one offset table of `4 |A|` B per
+//! state). Its successor table holds the intended outcome ([`World::step`]), one of
+//! them.
 
 use std::collections::hash_map::Entry;
 
@@ -188,6 +195,13 @@ pub struct StateSpace {
     index: Index,
     succ: Vec<u32>,
     actions: usize,
+    /// Stochastic worlds: where the outcomes of (s, a) start in `out_ids`, `len() x
+    /// num_actions() + 1` offsets; empty for deterministic worlds.
+    out_start: Vec<u32>,
+    /// Outcome state ids.
+    out_ids: Vec<u32>,
+    /// Outcome probabilities.
+    out_probs: Vec<f64>,
 }
 
 /// Bytes one state costs in a [`StateSpace`] with `actions` actions.
@@ -199,6 +213,9 @@ impl StateSpace {
     /// Enumerate the states reachable from `world.initial`. Refuses, with the estimate,
     /// when the space would outgrow `limits.max_bytes`.
     pub fn enumerate(world: &World, limits: &Limits) -> Result<StateSpace, EngineError> {
+        if world.is_stochastic() {
+            return Self::enumerate_stochastic(world, limits);
+        }
         let na = world.num_actions();
         let max_states = (limits.max_bytes / bytes_per_state(na)).min(u32::MAX as usize - 1);
         let mut states = vec![world.initial];
@@ -245,7 +262,102 @@ impl StateSpace {
             index,
             succ,
             actions: na,
+            out_start: Vec::new(),
+            out_ids: Vec::new(),
+            out_probs: Vec::new(),
         })
+    }
+
+    /// [`StateSpace::enumerate`] of a stochastic world: breadth-first over every outcome
+    /// of every action, keeping the transition distributions.
+    fn enumerate_stochastic(world: &World, limits: &Limits) -> Result<StateSpace, EngineError> {
+        let na = world.num_actions();
+        let per_state = bytes_per_state(na) + na * 4 * 12;
+        let max_states = (limits.max_bytes / per_state).min(u32::MAX as usize - 1);
+        let mut states = vec![world.initial];
+        let mut index = Index::new(world);
+        index.reserve(1 << 12);
+        index.get_or_insert(&world.initial, 0);
+        let mut succ: Vec<u32> = Vec::new();
+        let mut out_start: Vec<u32> = vec![0];
+        let mut out_ids: Vec<u32> = Vec::new();
+        let mut out_probs: Vec<f64> = Vec::new();
+        let mut start = 0;
+        let expand = |s: &State| -> Vec<(u8, State, f64)> {
+            let mut buf = Vec::with_capacity(4);
+            let mut v = Vec::with_capacity(na * 2);
+            for a in 0..na as u8 {
+                world.outcomes(s, a, &mut buf);
+                v.extend(buf.iter().map(|&(t, p)| (a, t, p)));
+            }
+            v
+        };
+        while start < states.len() {
+            let end = states.len();
+            let level = &states[start..end];
+            let next: Vec<Vec<(u8, State, f64)>> = if level.len() >= 2048 {
+                level.par_iter().map(expand).collect()
+            } else {
+                level.iter().map(expand).collect()
+            };
+            for per in next {
+                let mut last = u8::MAX;
+                for (a, t, p) in per {
+                    let (id, new) = index.get_or_insert(&t, states.len() as u32);
+                    if new {
+                        states.push(t);
+                    }
+                    if a != last {
+                        // The first outcome of each action is the intended one.
+                        if last != u8::MAX {
+                            out_start.push(out_ids.len() as u32);
+                        }
+                        succ.push(id);
+                        last = a;
+                    }
+                    out_ids.push(id);
+                    out_probs.push(p);
+                }
+                out_start.push(out_ids.len() as u32);
+            }
+            if states.len() > max_states {
+                return Err(EngineError::StateSpaceTooLarge {
+                    world: world.name.clone(),
+                    states: states.len(),
+                    bytes: states.len() * per_state,
+                    limit: limits.max_bytes,
+                });
+            }
+            start = end;
+        }
+        debug_assert_eq!(out_start.len(), states.len() * na + 1);
+        Ok(StateSpace {
+            states,
+            index,
+            succ,
+            actions: na,
+            out_start,
+            out_ids,
+            out_probs,
+        })
+    }
+
+    /// Whether the space keeps transition distributions (a stochastic world).
+    pub fn is_stochastic(&self) -> bool {
+        !self.out_start.is_empty()
+    }
+
+    /// The outcomes of action `a` in state `i`: ids and probabilities (summing to 1).
+    /// For a deterministic world, the one successor with probability 1.
+    #[inline]
+    pub fn outcomes(&self, i: u32, a: u8) -> (&[u32], &[f64]) {
+        if self.out_start.is_empty() {
+            let k = i as usize * self.actions + a as usize;
+            return (&self.succ[k..k + 1], &[1.0]);
+        }
+        let k = i as usize * self.actions + a as usize;
+        let (b, e) = (self.out_start[k] as usize, self.out_start[k + 1] as usize);
+        (&self.out_ids[b..e], &self.out_probs[b..e])
     }
 
     /// Number of states.
@@ -301,6 +413,8 @@ impl StateSpace {
     /// Approximate bytes held.
     pub fn bytes(&self) -> usize {
         self.len() * bytes_per_state(self.actions)
+            + self.out_start.len() * 4
+            + self.out_ids.len() * 12
     }
 }
 

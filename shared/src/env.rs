@@ -278,6 +278,13 @@ impl World {
     #[inline]
     pub fn env_step(&self, ep: &mut Episode, a: u8) -> Outcome {
         self.step_inline(&mut ep.state, a);
+        self.finish_step(ep)
+    }
+
+    /// What follows a step of an episode whose state has moved: the count, the task's
+    /// pay and the episode's end.
+    #[inline(always)]
+    pub(crate) fn finish_step(&self, ep: &mut Episode) -> Outcome {
         ep.t += 1;
         let (reward, terminated) = self.task_reward(&ep.state, &mut ep.rewarded);
         Outcome {

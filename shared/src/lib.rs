@@ -10,8 +10,10 @@
 //! assert_eq!((s.x, s.y), (2, 4));
 //! ```
 
-/// The built-in worlds (the paper's four, and a small room).
+/// The built-in worlds (the paper's four, and a small room; and two with chance).
 pub mod builtin;
+/// Stochastic dynamics: the exact transition distribution, and sampling from it.
+pub mod chance;
 /// Checkpoint files: format, checks, atomic writes (weights, optimiser state, counters).
 pub mod checkpoint;
 /// Everything the learner checks in a trajectory chunk before it uses any of it.

@@ -45,7 +45,7 @@ pub enum WorldError {
         msg: String,
     },
     /// The name is neither a file nor a built-in world.
-    #[error("unknown world '{0}': no such file, and not a built-in world ({list})", list = crate::builtin::NAMES.join(", "))]
+    #[error("unknown world '{0}': no such file, and not a built-in world ({list})", list = crate::builtin::all_names().collect::<Vec<_>>().join(", "))]
     Unknown(String),
     /// The file exists but cannot be read.
     #[error("cannot read world file {path}: {msg}")]
@@ -109,6 +109,13 @@ struct RawWorld {
     empowerment: Option<Spanned<RawEmpowerment>>,
     #[serde(default)]
     rules: Vec<Spanned<RawRule>>,
+    dynamics: Option<Spanned<RawDynamics>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawDynamics {
+    slip: Option<Spanned<toml::Value>>,
 }
 
 #[derive(Deserialize)]
@@ -137,6 +144,7 @@ struct RawRule {
     from: Spanned<String>,
     to: Spanned<String>,
     range: Spanned<toml::Value>,
+    p: Option<Spanned<toml::Value>>,
 }
 
 /// The largest horizon a world file may name.
@@ -228,6 +236,7 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     let (tools, objects) = name_things(&tool_decl, &cells);
     let tkinds: Vec<String> = tool_decl.iter().map(|t| t.1.clone()).collect();
     let rules = rules(&cx, &raw.rules, &tools, &tkinds)?;
+    let slip = slip(&cx, &raw.dynamics)?;
     let task = task(&cx, &raw.task, &objects, &cells.terrain)?;
     let empowerment = empowerment(&cx, &raw.empowerment, &tools, &objects, &tkinds)?;
     Ok(assemble(Parts {
@@ -240,6 +249,7 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
         tools,
         objects,
         rules,
+        slip,
         task,
         empowerment,
         source: text.to_string(),
@@ -333,6 +343,7 @@ fn rules(
     tkinds: &[String],
 ) -> Result<Vec<Rule>, WorldError> {
     let mut rules = default_rules();
+    let defaults = rules.len();
     for r in raw {
         let rr = r.get_ref();
         let tk = rr.tool.get_ref();
@@ -378,15 +389,83 @@ fn rules(
                 ))
             }
         };
+        let p = match &rr.p {
+            None => 1.0,
+            Some(v) => match number(v.get_ref()) {
+                Some(p) if p > 0.0 && p <= 1.0 => p,
+                _ => {
+                    return Err(cx.at(
+                        v.span().start,
+                        format!("p = {} must be a number above 0 and at most 1", v.get_ref()),
+                    ))
+                }
+            },
+        };
+        // An entry with a p that names a default rule only sets that rule's p.
+        let default = (rr.p.is_some())
+            .then(|| {
+                rules[..defaults].iter().position(|d| {
+                    d.tool == *tk && d.target == target && d.from == from && d.to == to
+                })
+            })
+            .flatten();
+        if let Some(d) = default {
+            if rules[d].range != range {
+                let name = |r: Range| match r {
+                    Range::Adjacent => "1",
+                    Range::Bolt => "\"bolt\"",
+                };
+                return Err(cx.at(
+                    rr.range.span().start,
+                    format!(
+                        "this entry sets p of the default rule {tk} {} {} -> {}, whose range is {}, so it must give range = {}",
+                        target.name(),
+                        rr.from.get_ref(),
+                        rr.to.get_ref(),
+                        name(rules[d].range),
+                        name(rules[d].range)
+                    ),
+                ));
+            }
+            rules[d].p = p;
+            continue;
+        }
         rules.push(Rule {
             tool: tk.clone(),
             target,
             from,
             to,
             range,
+            p,
         });
     }
     Ok(rules)
+}
+
+/// A TOML integer or float as a finite `f64`.
+fn number(v: &toml::Value) -> Option<f64> {
+    match v {
+        toml::Value::Integer(i) => Some(*i as f64),
+        toml::Value::Float(f) if f.is_finite() => Some(*f),
+        _ => None,
+    }
+}
+
+/// `[dynamics] slip`: 0 when absent.
+fn slip(cx: &Ctx, raw: &Option<Spanned<RawDynamics>>) -> Result<f64, WorldError> {
+    let Some(v) = raw.as_ref().and_then(|d| d.get_ref().slip.as_ref()) else {
+        return Ok(0.0);
+    };
+    match number(v.get_ref()) {
+        Some(q) if (0.0..1.0).contains(&q) => Ok(q),
+        _ => Err(cx.at(
+            v.span().start,
+            format!(
+                "slip = {} must be a number at least 0 and below 1",
+                v.get_ref()
+            ),
+        )),
+    }
 }
 
 /// The object a task or `[empowerment]` (`what`) names.
@@ -566,6 +645,7 @@ struct Parts {
     tools: Vec<Tool>,
     objects: Vec<Object>,
     rules: Vec<Rule>,
+    slip: f64,
     task: Task,
     empowerment: EmpowermentDefaults,
     source: String,
@@ -585,6 +665,7 @@ fn assemble(p: Parts) -> World {
         tools,
         objects,
         rules,
+        slip,
         task,
         empowerment,
         source,
@@ -619,6 +700,7 @@ fn assemble(p: Parts) -> World {
     }
     debug_assert!(initial.objects.iter().all(|&v| v != BOULDER_DESTROYED));
 
+    let stochastic = slip > 0.0 || tool_rules.iter().flatten().any(|r| r.p < 1.0);
     World {
         name,
         max_steps,
@@ -628,6 +710,8 @@ fn assemble(p: Parts) -> World {
         tools,
         objects,
         rules,
+        slip,
+        stochastic,
         tool_rules,
         tool_bolt,
         tool_at,

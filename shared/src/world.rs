@@ -159,8 +159,9 @@ pub enum Range {
     Bolt,
 }
 
-/// One line of the rule table: `tool` turns a `target` in condition `from` into `to`.
-#[derive(Clone, Debug, PartialEq, Eq)]
+/// One line of the rule table: `tool` turns a `target` in condition `from` into `to`,
+/// with probability `p` when it would act (1 in a deterministic world).
+#[derive(Clone, Debug, PartialEq)]
 pub struct Rule {
     /// The tool kind.
     pub tool: String,
@@ -172,6 +173,8 @@ pub struct Rule {
     pub to: Cond,
     /// Reach.
     pub range: Range,
+    /// The probability that the rule acts when it would (`0 < p <= 1`; default 1).
+    pub p: f64,
 }
 
 /// The default rule table (`docs/world.md`, "What tools do").
@@ -183,6 +186,7 @@ pub fn default_rules() -> Vec<Rule> {
         from,
         to,
         range,
+        p: 1.0,
     };
     vec![
         r("axe", Tree, INTACT, DESTROYED, Range::Adjacent),
@@ -262,6 +266,11 @@ pub struct World {
     pub objects: Vec<Object>,
     /// The rule table in force (defaults, then `[[rules]]`).
     pub rules: Vec<Rule>,
+    /// The probability that a move slips to one of the three other directions
+    /// (`[dynamics] slip`, `0 <= slip < 1`; 0 by default).
+    pub slip: f64,
+    /// Whether anything is left to chance (a slip above 0 or a rule with p below 1).
+    pub(crate) stochastic: bool,
     /// Rules per tool index, in table order.
     pub(crate) tool_rules: Vec<Vec<Rule>>,
     /// Whether a tool has any bolt rule.
@@ -422,7 +431,9 @@ impl World {
         }
     }
 
-    /// T(s, a): the next state. Deterministic; actions out of range act as "stay".
+    /// T(s, a): the next state; actions out of range act as "stay". In a stochastic world
+    /// (`crate::chance`) it is the intended outcome: no slip, and a rule that would act
+    /// acts, which has positive probability; [`World::outcomes`] gives them all.
     #[inline]
     pub fn step(&self, s: &State, a: u8) -> State {
         let mut n = *s;
@@ -458,7 +469,8 @@ impl World {
             m => {
                 n.set_mode(Mode::Normal);
                 if a < 4 {
-                    self.use_tool(n, (m - 2) as usize, a);
+                    // The rule's probability matters only to the stochastic dynamics.
+                    let _ = self.use_tool(n, (m - 2) as usize, a);
                 }
             }
         }
@@ -466,7 +478,7 @@ impl World {
 
     /// Move one cell in direction `d`, pushing a boulder and picking up a tool.
     #[inline]
-    fn walk(&self, n: &mut State, d: u8) {
+    pub(crate) fn walk(&self, n: &mut State, d: u8) {
         let (dx, dy) = DIRS[d as usize];
         let (tx, ty) = (n.x as i32 + dx, n.y as i32 + dy);
         let Some(t) = self.cell(tx, ty) else { return };
@@ -503,11 +515,12 @@ impl World {
     }
 
     /// Tool `k` acts in direction `d`: range-1 rules on the next cell, bolt rules along
-    /// the line until a rule applies or a cell blocks bolts.
-    fn use_tool(&self, n: &mut State, k: usize, d: u8) {
+    /// the line until a rule applies or a cell blocks bolts. Returns the probability of
+    /// the rule that acted (1 when none did).
+    pub(crate) fn use_tool(&self, n: &mut State, k: usize, d: u8) -> f64 {
         let rules = &self.tool_rules[k];
         if rules.is_empty() {
-            return;
+            return 1.0;
         }
         let (dx, dy) = DIRS[d as usize];
         let (mut x, mut y) = (n.x as i32 + dx, n.y as i32 + dy);
@@ -525,11 +538,11 @@ impl World {
                         && !(self.blocking(kind, r.to) && self.occupied_by_other(n, c, i))
                 });
                 if let Some(r) = rule {
-                    hit = Some((i, r.to));
+                    hit = Some((i, r.to, r.p));
                     break;
                 }
             }
-            if let Some((i, to)) = hit {
+            if let Some((i, to, p)) = hit {
                 n.objects[i] = if self.objects[i].kind == ObjectKind::Boulder {
                     // Rules never restore a destroyed boulder (refused when parsing).
                     if to == DESTROYED {
@@ -540,18 +553,19 @@ impl World {
                 } else {
                     to as u16
                 };
-                return;
+                return p;
             }
             let blocks = self.terrain[c] == Terrain::Rock
                 || self.static_blocks(n, c)
                 || self.boulder_on(n, c as u16).is_some();
             if blocks || !self.tool_bolt[k] {
-                return;
+                return 1.0;
             }
             adjacent = false;
             x += dx;
             y += dy;
         }
+        1.0
     }
 
     /// Whether condition `to` of `kind` blocks movement (so it may not close on something).

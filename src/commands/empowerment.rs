@@ -85,6 +85,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
             "columns": m.columns,
             "matrix": m.values,
             "selection": selection,
+            "gap_bits": m.gap,
             "elapsed_ms": elapsed_ms,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
@@ -209,6 +210,7 @@ fn landscape(a: &LandscapeArgs) -> Result<()> {
             "width": w.width,
             "height": w.height,
             "values": l.values,
+            "gap_bits": l.gap,
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -321,12 +323,12 @@ fn trace(a: &TraceArgs) -> Result<()> {
     } else {
         Some(r.e.trace(r.tool, &r.set, he, &actions)?)
     };
-    let steps: Vec<(Option<u8>, State, f64, u32)> = tu
+    let steps: Vec<(Option<u8>, State, f64, u32, f64)> = tu
         .iter()
         .enumerate()
         .map(|(t, s)| match &te {
-            Some(te) if r.tool.held(&s.state) => (s.action, s.state, te[t].value, he),
-            _ => (s.action, s.state, s.value, hu),
+            Some(te) if r.tool.held(&s.state) => (s.action, s.state, te[t].value, he, te[t].gap),
+            _ => (s.action, s.state, s.value, hu, s.gap),
         })
         .collect();
     let tool_name = r.tool.name(&w);
@@ -396,6 +398,7 @@ fn trace(a: &TraceArgs) -> Result<()> {
                 "action": s.0.map(|x| w.action_name(x)),
                 "value": s.2,
                 "horizon": s.3,
+                "gap_bits": s.4,
                 "state": w.describe(&s.1),
             })).collect::<Vec<_>>(),
         });
@@ -454,37 +457,45 @@ fn query(a: &QueryArgs) -> Result<()> {
     let method: Method = a.channel.method.into();
     let mut values = Vec::with_capacity(states.len());
     // One table per distinct horizon, shared by all states that use it.
-    let mut tables: Vec<(u32, Vec<f64>)> = Vec::new();
+    let mut tables: Vec<(u32, Vec<f64>, Vec<f64>)> = Vec::new();
+    let stochastic = w.is_stochastic();
     for (s, (place, _)) in states.iter().zip(&lines) {
         let h = horizon_for(&w, &a.channel, r.tool, s);
         let id =
             r.e.state_id(s)
                 .map_err(|e| BadRequest(format!("{place}: {e}")))?;
-        let v = match method {
+        let (v, gap) = match method {
+            // A stochastic world computes each state's channel on its own.
+            _ if stochastic => {
+                let c = r.e.values_at(r.tool, &r.set, h, &[id], method)?[0];
+                (c.bits, c.gap)
+            }
             Method::Dp => {
                 if !tables.iter().any(|t| t.0 == h) {
-                    tables.push((h, r.e.values(r.tool, &r.set, h, method)?));
+                    let (v, g) = r.e.values_gap(r.tool, &r.set, h, method)?;
+                    tables.push((h, v, g));
                 }
-                tables.iter().find(|t| t.0 == h).expect("made above").1[id as usize]
+                let t = tables.iter().find(|t| t.0 == h).expect("made above");
+                (t.1[id as usize], t.2[id as usize])
             }
-            Method::Enumerate => r.e.query(s, r.tool, &r.set, h, method)?,
+            Method::Enumerate => (r.e.query(s, r.tool, &r.set, h, method)?, 0.0),
         };
-        values.push((v, h));
+        values.push((v, h, gap));
     }
     if a.channel.json {
         let v = if a.state.is_some() {
-            json!({"value": values[0].0, "horizon": values[0].1, "tool": r.tool.name(&w), "objects": set_objects(&w, &r.set)})
+            json!({"value": values[0].0, "horizon": values[0].1, "gap_bits": values[0].2, "tool": r.tool.name(&w), "objects": set_objects(&w, &r.set)})
         } else {
             json!({
                 "tool": r.tool.name(&w),
                 "objects": set_objects(&w, &r.set),
-                "values": values.iter().zip(&states).map(|(v, s)| json!({"state": w.describe(s), "value": v.0, "horizon": v.1})).collect::<Vec<_>>(),
+                "values": values.iter().zip(&states).map(|(v, s)| json!({"state": w.describe(s), "value": v.0, "horizon": v.1, "gap_bits": v.2})).collect::<Vec<_>>(),
             })
         };
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
     }
-    for ((v, h), s) in values.iter().zip(&states) {
+    for ((v, h, _), s) in values.iter().zip(&states) {
         println!(
             "{v:.6} bits  (E^{h} {} -> {})  {}",
             r.tool.name(&w),

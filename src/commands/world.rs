@@ -38,6 +38,21 @@ fn show(name: &str, as_json: bool) -> Result<()> {
         ObjectSet::Agent => "agent".to_string(),
         s => fulcrum_empowerment::set_name(&w, s),
     });
+    // The rules of the tools in play that act with a probability below 1.
+    let chancy: Vec<&fulcrum_shared::Rule> = w
+        .rules
+        .iter()
+        .filter(|r| r.p < 1.0 && w.tools.iter().any(|t| t.kind == r.tool))
+        .collect();
+    let rule_text = |r: &fulcrum_shared::Rule| {
+        format!(
+            "{} {} {} -> {}",
+            r.tool,
+            r.target.name(),
+            fulcrum_shared::world::cond_name(r.target, r.from),
+            fulcrum_shared::world::cond_name(r.target, r.to)
+        )
+    };
     if as_json {
         let v = json!({
             "world": w.name,
@@ -49,6 +64,9 @@ fn show(name: &str, as_json: bool) -> Result<()> {
             "objects": w.objects.iter().map(|o| json!({"name": o.name, "kind": o.kind.name(), "x": o.pos.0, "y": o.pos.1})).collect::<Vec<_>>(),
             "actions": actions,
             "task": w.task_text(),
+            "stochastic": w.is_stochastic(),
+            "slip": w.slip,
+            "rule_p": chancy.iter().map(|r| json!({"rule": rule_text(r), "p": r.p})).collect::<Vec<_>>(),
             "empowerment": {"tool": tool, "objects": objects, "horizon_unequipped": emp.horizon_unequipped, "horizon_equipped": emp.horizon_equipped, "beta": emp.beta},
             "states": e.space.len(),
             "normal_states": e.normal_states(),
@@ -94,6 +112,25 @@ fn show(name: &str, as_json: bool) -> Result<()> {
         actions.len()
     );
     println!("task         {}", w.task_text());
+    if w.is_stochastic() {
+        let mut parts = Vec::new();
+        if w.slip > 0.0 {
+            parts.push(format!("moves slip with probability {}", w.slip));
+        }
+        if !chancy.is_empty() {
+            let rules: Vec<String> = chancy
+                .iter()
+                .map(|r| format!("{} (p {})", rule_text(r), r.p))
+                .collect();
+            parts.push(format!(
+                "rules act with a probability: {}",
+                rules.join(", ")
+            ));
+        }
+        println!("chance       {}", parts.join("; "));
+    } else {
+        println!("chance       none (deterministic)");
+    }
     println!(
         "empowerment  tool {tool}, objects {}, h = {} unequipped / {} equipped, beta {}",
         objects.unwrap_or_else(|| "none".into()),

@@ -3,9 +3,12 @@
 
 use serde_json::Value;
 
+/// Stochastic worlds through the binary.
+mod stochastic;
+
 use crate::util::{run as fulcrum, TempDir};
 
-fn json(args: &[&str]) -> Value {
+pub(super) fn json(args: &[&str]) -> Value {
     let out = fulcrum(args);
     assert!(
         out.status.success(),
@@ -16,7 +19,7 @@ fn json(args: &[&str]) -> Value {
 }
 
 /// Runs and fails with exit code 2 and one line on stderr mentioning `needle`.
-fn bad_input(args: &[&str], needle: &str) {
+pub(super) fn bad_input(args: &[&str], needle: &str) {
     let out = fulcrum(args);
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
