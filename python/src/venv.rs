@@ -242,6 +242,12 @@ impl VecCore {
         let view: View = view.parse().map_err(value_error)?;
         let pyworld = crate::world::world_arg(world)?;
         let w = Arc::clone(&pyworld.get().world);
+        if w.is_stochastic() {
+            return Err(value_error(format!(
+                "world '{}' is stochastic ([dynamics] slip or a rule's p): fulcrum.empowerment computes its exact empowerment, but environments do not sample its dynamics yet",
+                w.name
+            )));
+        }
         let spec = view.spec(&w);
         let n = num_envs;
         let na = w.num_actions();

@@ -131,3 +131,12 @@ def test_bad_settings_raise_value_error_with_the_cli_sentence():
         EmpowermentReward(env, horizons=(99, 3))
     with pytest.raises(ValueError, match="wraps a fulcrum vector environment"):
         EmpowermentReward(gym.make_vec("CartPole-v1", num_envs=1))
+
+
+def test_stochastic_worlds_are_refused_by_environments_in_one_sentence():
+    # Their exact empowerment is computed, but episodes do not sample their dynamics.
+    for make in (lambda: fulcrum.make_vec("exp1-tree-slip", num_envs=1),
+                 lambda: gym.make("fulcrum/exp1-tree-v0") and fulcrum.make_vec("exp2-slip", num_envs=2)):
+        with pytest.raises(ValueError, match="is stochastic") as e:
+            make()
+        assert "\n" not in str(e.value)

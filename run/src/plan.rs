@@ -239,6 +239,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
 pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
     let spec = a.world.clone().unwrap_or_default();
     let w = load_world(&spec)?;
+    refuse_stochastic(&w, "trained")?;
     // A file path is stored absolute so that a resume from elsewhere finds it.
     let world_spec =
         if fulcrum_shared::builtin::source(&spec).is_none() && Path::new(&spec).exists() {
@@ -280,22 +281,11 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             .unwrap_or(128),
         learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
         hidden: a.hidden.unwrap_or(64),
+        // horizon-potential's default needs the potential's maximum: set below, once the
+        // settings are checked.
         beta: match (form, a.beta) {
             (Intrinsic::None, _) => 0.0,
             (_, Some(b)) => b,
-            (Intrinsic::HorizonPotential, None) => form.default_beta(
-                e.beta,
-                max_potential(
-                    &w,
-                    a.tool.as_ref().and_then(ChannelTool::as_request),
-                    a.objects.as_deref(),
-                    a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
-                    match (fixed, a.horizon_equipped) {
-                        (true, None) => a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
-                        (_, h) => h.unwrap_or(e.horizon_equipped),
-                    },
-                )?,
-            ),
             (_, None) => form.default_beta(e.beta, 0.0),
         },
         empowerment: form.uses_service(),
@@ -328,6 +318,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             }
         },
     };
+    let mut cfg = cfg;
     cfg.check().map_err(BadRequest)?;
     if a.steps.is_some() {
         whole_updates(&cfg)?;
@@ -347,6 +338,18 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
                     w.tool_list()
                 ));
             }
+        }
+        if form == Intrinsic::HorizonPotential && a.beta.is_none() {
+            cfg.beta = form.default_beta(
+                e.beta,
+                max_potential(
+                    &w,
+                    cfg.tool.as_request(),
+                    (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+                    cfg.horizon_unequipped,
+                    cfg.horizon_equipped,
+                )?,
+            );
         }
     }
     Ok((cfg, w))
@@ -368,6 +371,19 @@ fn max_potential(
     let tool = fulcrum_empowerment::request::tool_sel(w, &engine, tool, &set)?;
     let phi = engine.lookup_values(tool, &set, horizon_unequipped, horizon_equipped, true)?;
     Ok(phi.iter().copied().fold(0.0f32, f32::max) as f64)
+}
+
+/// A stochastic world is refused where its dynamics would have to be sampled (training,
+/// evaluation, recording): those paths step the world deterministically, and would
+/// train on the intended outcomes while the service answers for the noisy ones.
+pub fn refuse_stochastic(w: &World, what: &str) -> Result<()> {
+    if w.is_stochastic() {
+        return bad(format!(
+            "world '{}' is stochastic ([dynamics] slip or a rule's p): its exact empowerment is computed (fulcrum empowerment, fulcrum serve), but it cannot be {what} yet, since episodes do not sample its dynamics",
+            w.name
+        ));
+    }
+    Ok(())
 }
 
 /// An explicit step count must be whole updates: a run never stops in the middle of

@@ -389,6 +389,10 @@ fn bad_training_settings_are_refused_before_anything_starts() {
         ),
         (vec!["room", "--tool", "hammer", "--out", d], "unknown tool"),
         (vec!["no-such-world", "--out", d], "no-such-world"),
+        (
+            vec!["exp1-tree-slip", "--out", d],
+            "world 'exp1-tree-slip' is stochastic",
+        ),
         (vec!["--resume", "/nonexistent/run"], "no config.toml"),
         // 1 actor x 8 worlds x 128 steps = 1024 a batch: 1500 is not whole updates.
         (
