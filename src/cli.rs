@@ -109,7 +109,7 @@ pub enum Command {
 /// `fulcrum serve`
 #[derive(Debug, Args)]
 pub struct ServeArgs {
-    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
     pub world: String,
     /// Tool of the lookup table: a tool name, `all`, or `auto` (tool selection by the
     /// matrix). Default: the world's [empowerment] tool.
@@ -146,7 +146,7 @@ pub struct ServeArgs {
 pub enum WorldCmd {
     /// Map, tools, objects, actions and state-space size of a world.
     Show {
-        /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+        /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
         world: String,
         /// Print JSON instead of text.
         #[arg(long)]
@@ -194,7 +194,7 @@ pub enum MethodArg {
 /// What every empowerment question names.
 #[derive(Debug, Args)]
 pub struct Channel {
-    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
     pub world: String,
     /// Tool whose actions drive the channel: a tool name, kind or letter, or `all`.
     /// Default: the world's [empowerment] tool (auto = the matrix's selection).
@@ -230,7 +230,7 @@ pub enum EmpCmd {
 /// `fulcrum empowerment matrix`
 #[derive(Debug, Args)]
 pub struct MatrixArgs {
-    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
+    /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
     pub world: String,
     /// One horizon for held and not-held states.
     #[arg(long, conflicts_with_all = ["horizon_unequipped", "horizon_equipped"])]
