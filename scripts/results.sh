@@ -91,13 +91,25 @@ if [[ "$mode" != pictures || -d experiments/exp3 ]]; then
 fi
 
 # Worlds nobody wrote: 20 generated worlds x 3 seeds within 999,424 env steps; the
-# baseline, train's default form, the additive bonus (the default before it) and the
-# paper's setting (train --paper).
+# baseline, train's default form, the additive bonus (the default before it), the
+# paper's setting (train --paper) and horizon-potential at beta 0.05 (its default before
+# 0.4 / max Phi); then 20 worlds generated after that change, and the default on exp2
+# and exp3, where its beta differs from 0.05.
 if [[ "$mode" != pictures || -d experiments/robust ]]; then
   quiet_if_pictures $f experiment --worlds gen:20 --seeds 3 --steps 999424 \
-    --arms baseline,horizon-potential,additive,paper --out experiments/robust
+    --arms baseline,horizon-potential,additive,paper --intrinsic horizon-potential \
+    --beta-sweep 0.05 --out experiments/robust
   cp experiments/robust/summary.md "$out/robust-summary.md"
   cp experiments/robust/summary.json "$out/robust-summary.json"
+  quiet_if_pictures $f experiment --worlds gen:20:seed=1001 --seeds 3 --steps 999424 \
+    --arms baseline,horizon-potential --out experiments/robust-fresh
+  cp experiments/robust-fresh/summary.md "$out/robust-fresh-summary.md"
+  cp experiments/robust-fresh/summary.json "$out/robust-fresh-summary.json"
+  for world in exp2 exp3; do
+    quiet_if_pictures $f experiment "$world" --seeds 10 --steps 2998272 \
+      --arms baseline,horizon-potential --out "experiments/default-beta/$world"
+    cp "experiments/default-beta/$world/summary.md" "$out/default-beta-$world-summary.md"
+  done
 fi
 # The beacon-trap detector against the additive runs of the tables above (the same
 # runs again: synchronous PPO gives them bit for bit; the summaries replay the detector).
@@ -114,6 +126,7 @@ if [[ "$mode" != pictures || -d experiments/trap-check ]]; then
       --out "experiments/trap-check/unmasked-$1" -- --no-action-mask --ppo-preset cleanrl
     cp "experiments/trap-check/unmasked-$1/summary.md" "$out/trap-check-unmasked-$1-summary.md"
   done
+  python3 scripts/trap_check_table.py > "$out/trap-check-table.md"
 fi
 
 # Tables II and III, and exp3's matrix.
