@@ -11,8 +11,8 @@
 //! form only.
 //!
 //! Over the trailing window of updates (the fewest last updates that span at least
-//! [`WINDOW_STEPS`] env steps; the run must have made that many), the update's row is
-//! marked `trap = 1` when all of these hold:
+//! [`WINDOW_STEPS`](crate::trap::WINDOW_STEPS) env steps; the run must have made that
+//! many), the update's row is marked `trap = 1` when all of these hold:
 //!
 //! * no episode of the window succeeded (and at least one ended);
 //! * the episodes ran to their limit: mean length >= 0.95 * max_steps;
@@ -20,8 +20,8 @@
 //!   episode) > 0 and at least the mean task return per episode, i.e. at least half of
 //!   what the episodes earned;
 //! * and it is worth having: beta * (mean intrinsic return per episode) is at least
-//!   [`WORTH_FRACTION`] of the reward the whole task pays (1 per object to destroy, 1
-//!   for a push);
+//!   [`WORTH_FRACTION`](crate::trap::WORTH_FRACTION) of the reward the whole task pays
+//!   (1 per object to destroy, 1 for a push);
 //! * the agent dwells where the bonus pays: E(s') > 0 on at least half of the window's
 //!   steps.
 //!

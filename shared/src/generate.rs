@@ -8,8 +8,9 @@
 //!
 //! A generated world's task (destroy its first object) need not be possible: rock may
 //! wall the object or the tools in, and no tool may fit the object.
-//! [`fewest_steps_to_task`] says whether it is (a breadth-first search with the world's
-//! own step), and a [`GenSet`] (`gen:N[:key=value,...]`, as `fulcrum experiment
+//! [`fewest_steps_to_task`](crate::generate::fewest_steps_to_task) says whether it is (a
+//! breadth-first search with the world's own step), and a
+//! [`GenSet`](crate::generate::GenSet) (`gen:N[:key=value,...]`, as `fulcrum experiment
 //! --worlds` takes it) keeps the first N worlds by seed whose task can be done within an
 //! episode.
 
