@@ -128,6 +128,11 @@ pub struct ServeArgs {
     /// the potential of `train --intrinsic horizon-potential`.
     #[arg(long)]
     pub horizon_sum: bool,
+    /// The dynamics the table is computed on: exact (the world as it is) or
+    /// deterministic (the same map with slip 0 and every rule's p 1); either way the
+    /// service answers for the world's own states and hash.
+    #[arg(long, default_value = "exact", value_parser = ["exact", "deterministic"])]
+    pub model: String,
     /// Service namespace: the service is `fulcrum/<namespace>/empowerment`.
     #[arg(long, default_value = "default")]
     pub namespace: String,
@@ -369,6 +374,11 @@ pub struct TrainArgs {
     /// not-held horizon everywhere [default: switch].
     #[arg(long, value_parser = ["switch", "fixed"])]
     pub horizon_mode: Option<String>,
+    /// The dynamics E is computed on: exact (the world as it is; in a stochastic world
+    /// the channel capacity of its noisy dynamics) or deterministic (the same map with
+    /// slip 0 and every rule's p 1: what ignoring the noise gives) [default: exact].
+    #[arg(long, value_parser = ["exact", "deterministic"])]
+    pub empowerment_model: Option<String>,
     /// Two value heads, as RND: the task reward and the intrinsic reward get their own
     /// value estimates and GAE, the intrinsic reward divided by the running standard
     /// deviation of the intrinsic rewards so far, so that beta weighs the intrinsic
@@ -667,8 +677,10 @@ pub struct ExperimentArgs {
     /// Arms, comma separated: baseline (no intrinsic reward), empowerment (the
     /// --intrinsic form), a form by name (none, additive, potential, count,
     /// horizon-potential, first-visit), additive-fixed (additive with --horizon-mode
-    /// fixed), paper (train --paper: additive, unmasked, RLlib's PPO), a baseline with
-    /// another PPO preset (cleanrl, rllib), or baseline-unmasked (the baseline with
+    /// fixed), horizon-potential-deterministic (horizon-potential with
+    /// --empowerment-model deterministic: E of the same map without its noise), paper
+    /// (train --paper: additive, unmasked, RLlib's PPO), a baseline with another PPO
+    /// preset (cleanrl, rllib), or baseline-unmasked (the baseline with
     /// --no-action-mask).
     #[arg(long, default_value = "baseline,empowerment")]
     pub arms: String,
@@ -755,6 +767,12 @@ impl TrainArgs {
                     .into(),
             );
         }
+        if none && a.empowerment_model.is_some() {
+            return refuse(
+                "--empowerment-model and --no-empowerment (or --intrinsic none) contradict each other: a run without empowerment computes none"
+                    .into(),
+            );
+        }
         if let Some(dir) = &a.resume {
             let changed: Vec<&str> = [
                 (a.beta.is_some(), "--beta"),
@@ -766,6 +784,7 @@ impl TrainArgs {
                 (a.gamma_int.is_some(), "--gamma-int"),
                 (a.intrinsic.is_some(), "--intrinsic"),
                 (a.horizon_mode.is_some(), "--horizon-mode"),
+                (a.empowerment_model.is_some(), "--empowerment-model"),
                 (a.seed.is_some(), "--seed"),
                 (a.actors.is_some(), "--actors"),
                 (a.envs_per_actor.is_some(), "--envs-per-actor"),
@@ -807,6 +826,12 @@ impl TrainArgs {
             },
             horizon_mode: a
                 .horizon_mode
+                .as_deref()
+                .map(str::parse)
+                .transpose()
+                .map_err(BadRequest)?,
+            empowerment_model: a
+                .empowerment_model
                 .as_deref()
                 .map(str::parse)
                 .transpose()

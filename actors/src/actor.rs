@@ -19,7 +19,10 @@
 //!    notify the learner.
 //!
 //! Sampling is seeded per chunk from (run seed, actor, policy version, chunk), so a run
-//! resumed from a checkpoint draws the same actions as one that was never stopped.
+//! resumed from a checkpoint draws the same actions as one that was never stopped. In a
+//! stochastic world the same generator draws each step's outcome
+//! ([`fulcrum_shared::World::env_step_drawn`]; none in a deterministic world), so the
+//! resumed run also meets the same slips and failed tool uses.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -39,7 +42,7 @@ use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::BackpressureAction;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::ActorError;
@@ -522,7 +525,11 @@ impl<'a> Actor<'a> {
             let i = base + e;
             let rec = &mut self.envs[e];
             let prev = rec.episode.state;
-            let out = self.world.env_step(&mut rec.episode, self.acts[e]);
+            // A stochastic world's outcome is drawn from the chunk's generator, after the
+            // actions: a deterministic world draws nothing, so its stream is unchanged.
+            let out = self
+                .world
+                .env_step_drawn(&mut rec.episode, self.acts[e], || rng.next_u64());
             let next = rec.episode.state;
             self.next_states.push(next);
             rec.ext_return += out.reward;

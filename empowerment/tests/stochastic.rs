@@ -364,3 +364,44 @@ fn a_channel_over_the_memory_limit_is_refused() {
         "{msg}"
     );
 }
+
+// `--empowerment-model deterministic`: the slip worlds with nothing left to chance are
+// the paper's worlds they were written from (the same map, tools and horizons; a
+// different file): the same states in the same order and the same service tables, bit
+// for bit. Every state the noisy dynamics reach is one of them, so a service computed
+// on the twin answers every state an actor of the noisy world meets.
+#[test]
+fn the_deterministic_twin_of_a_slip_world_is_the_world_it_was_written_from() {
+    for (noisy, plain) in [("exp1-tree-slip", "exp1-tree"), ("exp2-slip", "exp2")] {
+        let n = load_world(noisy).unwrap();
+        let twin = n.without_chance();
+        assert!(n.is_stochastic() && !twin.is_stochastic());
+        assert_eq!(twin.content_hash(), n.content_hash(), "{noisy}");
+        assert_eq!(twin.slip, 0.0);
+        assert!(twin.rules.iter().all(|r| r.p == 1.0));
+        let p = load_world(plain).unwrap();
+        let (et, ep) = (
+            Engine::new(&twin, Limits::default()).unwrap(),
+            Engine::new(&p, Limits::default()).unwrap(),
+        );
+        assert_eq!(et.space.states(), ep.space.states(), "{noisy}");
+        let en = Engine::new(&n, Limits::default()).unwrap();
+        assert_eq!(en.space.len(), et.space.len(), "{noisy}");
+        assert!(en.space.states().iter().all(|s| et.space.id(s).is_some()));
+        let set = ObjectSet::Objects(vec![0]);
+        let tool = ToolSel::Tool(0);
+        let (hu, he) = (
+            p.empowerment.horizon_unequipped,
+            p.empowerment.horizon_equipped,
+        );
+        let a = et.lookup_values(tool, &set, hu, he, true).unwrap();
+        let b = ep.lookup_values(tool, &set, hu, he, true).unwrap();
+        assert!(
+            a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{noisy}"
+        );
+        // And the noise lowers E somewhere: the twin is not the noisy world's table.
+        let c = en.lookup_values(tool, &set, hu, he, true).unwrap();
+        assert!(c.iter().zip(&a).any(|(x, y)| x < y), "{noisy}");
+    }
+}

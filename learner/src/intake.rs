@@ -68,6 +68,7 @@ mod tests {
             empowerment: true,
             intrinsic: Intrinsic::Additive,
             horizon_mode: HorizonMode::Switch,
+            empowerment_model: fulcrum_shared::config::EmpowermentModel::Exact,
             tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,

@@ -12,7 +12,7 @@ use fulcrum_shared::layout::shape_for;
 use fulcrum_shared::View;
 use fulcrum_shared::{Episode, World};
 use rand::seq::SliceRandom;
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::adam::Adam;
@@ -150,7 +150,7 @@ pub fn train(
                 acts[i] = a[e];
                 lps[i] = lp[e];
                 vals[i] = v[e];
-                let out = world.env_step(&mut eps[e], a[e] as u8);
+                let out = world.env_step_drawn(&mut eps[e], a[e] as u8, || rng.next_u64());
                 let bonus = cfg.beta * intrinsic(&eps[e].state);
                 intrinsic_sum += bonus as f64;
                 rews[i] = out.reward + bonus;

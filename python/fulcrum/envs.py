@@ -9,6 +9,10 @@ Observation (a ``Dict``), for a ``W x H`` world with ``n`` tools:
 - ``flags``: uint8 ``(2n + 2,)``: held tool k at k, then the mode one-hot (normal,
   choosing-tool, choosing-direction(k)).
 
+In a stochastic world (``[dynamics] slip``, a rule's ``p``; ``docs/world.md``) every
+step draws its outcome from the environment's own generator, which ``reset(seed=...)``
+seeds; the same seed replays the same episodes.
+
 Actions: ``Discrete(5 + n)``: N, E, S, W, apply, then select tool k. Every action is
 legal in every state (the world turns a useless one into "nothing happens");
 ``info["action_mask"]`` (int8, 1 = can do something) is the per-mode mask that
@@ -66,6 +70,26 @@ def _first_seed(seed: int | list[int] | None) -> int | None:
     return seed
 
 
+_SEED_BOUND = 2**63
+
+
+def _world_seeds(
+    seed: int | list[int] | None, n: int, rng: np.random.Generator
+) -> list[int]:
+    """One seed per environment for a stochastic world's outcomes: ``seed + e`` for an
+    integer (gymnasium's convention for vector environments), the list as given, or
+    drawn from ``rng`` (``np_random``) where no seed is given."""
+    if isinstance(seed, (list, tuple)):
+        if len(seed) != n:
+            raise ValueError(f"{len(seed)} seeds for {n} environments: give one per environment")
+        return [
+            int(rng.integers(_SEED_BOUND)) if s is None else int(s) % 2**64 for s in seed
+        ]
+    if seed is None:
+        return [int(v) for v in rng.integers(_SEED_BOUND, size=n)]
+    return [(int(seed) + e) % 2**64 for e in range(n)]
+
+
 class FulcrumVectorEnv(gym.vector.VectorEnv):
     """``num_envs`` episodes of one world, stepped together in Rust.
 
@@ -96,6 +120,7 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         self.world = self._core.world
         self.view = self._core.view
         self.num_envs = int(num_envs)
+        self._seeded = False
         self.render_mode = render_mode
         self.tile = tile
         self.single_observation_space, self.single_action_space = _spaces(self._core)
@@ -133,13 +158,18 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
     ):
         """Every episode (or those of ``options["reset_mask"]``) back to the start.
 
-        The worlds are deterministic: ``seed`` seeds ``action_space`` and
-        ``np_random`` only.
+        ``seed`` seeds ``action_space``, ``np_random`` and, in a stochastic world, the
+        outcomes: environment e draws from its own generator, seeded ``seed + e`` (or
+        ``seed[e]`` for a list); the first reset without a seed seeds them from
+        ``np_random``. A deterministic world draws nothing.
         """
         first = _first_seed(seed)
         super().reset(seed=first)
         if first is not None:
             self.action_space.seed(first)
+        if seed is not None or not self._seeded:
+            self._core.seed(_world_seeds(seed, self.num_envs, self.np_random))
+            self._seeded = True
         mask = None
         if options and options.get("reset_mask") is not None:
             mask = np.ascontiguousarray(options["reset_mask"], dtype=np.bool_)
@@ -188,6 +218,7 @@ class FulcrumEnv(gym.Env):
         self.tile = tile
         self.observation_space, self.action_space = _spaces(self._core)
         self._ended = False
+        self._seeded = False
 
     def _observe(self):
         c = self._core
@@ -195,7 +226,12 @@ class FulcrumEnv(gym.Env):
         return obs, {"action_mask": c.action_mask[0].copy()}
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        """The episode back to the start. ``seed`` seeds ``np_random`` and, in a
+        stochastic world, the outcomes (as environment 0 of a vector seeded alike)."""
         super().reset(seed=seed)
+        if seed is not None or not self._seeded:
+            self._core.seed(_world_seeds(seed, 1, self.np_random))
+            self._seeded = True
         self._core.reset(None)
         self._ended = False
         return self._observe()

@@ -8,7 +8,8 @@
 //! first-visit E(s_{t+1}) once per inventory and episode; count 1 / sqrt(N(s_{t+1})).
 //! E is the exact table of the empowerment service (`Engine::lookup_values`): E^{h_e}
 //! where the tool is held, E^{h_u} elsewhere. Each environment's state id is followed
-//! through the state space's successor table, so a lookup is one array read.
+//! through the state space's successor table, so a lookup is one array read (in a
+//! stochastic world the outcome drawn is looked up by its state instead).
 //!
 //! Output arrays, float32 (N,): `total` (r + beta b), `intrinsic` (beta b) and `value`
 //! (E(s_{t+1}), Phi(s_{t+1}) or N(s_{t+1})). A reset step of the next-step autoreset pays
@@ -265,6 +266,7 @@ impl Shaper {
             // The paper's form, b_t = E(s_{t+1}) (`intrinsic::bonus`): one tight pass.
             let (succ, na) = (engine.space.succ_table(), engine.space.num_actions());
             let (beta, init) = (self.beta, self.init_id);
+            let chance = engine.world.is_stochastic();
             let outs = out
                 .total
                 .iter_mut()
@@ -275,14 +277,19 @@ impl Shaper {
                 .iter_mut()
                 .zip(acts)
                 .zip(was_reset)
-                .zip(v.reward.iter());
-            for ((((id, &a), &reset), &r), ((total, intrinsic), value)) in ins.zip(outs) {
+                .zip(v.reward.iter())
+                .zip(eps);
+            for (((((id, &a), &reset), &r), ep), ((total, intrinsic), value)) in ins.zip(outs) {
                 if reset {
                     *id = init;
                     (*total, *intrinsic, *value) = (0.0, 0.0, 0.0);
                     continue;
                 }
-                *id = succ[*id as usize * na + a as usize];
+                *id = if chance {
+                    drawn_id(engine, &ep.state)
+                } else {
+                    succ[*id as usize * na + a as usize]
+                };
                 let e = self.values[*id as usize];
                 *intrinsic = beta * e;
                 *total = r + beta * e;
@@ -301,7 +308,7 @@ impl Shaper {
                     out.value[e] = 0.0;
                     continue;
                 }
-                let id = engine.space.succ(self.ids[e], acts[e]);
+                let id = next_id(engine, self.ids[e], acts[e], &eps[e]);
                 self.ids[e] = id;
                 let next = match form {
                     Intrinsic::Count => {
@@ -331,7 +338,7 @@ impl Shaper {
                 s.truncated[e] = 0;
                 continue;
             }
-            let id = engine.space.succ(self.ids[e], acts[e]);
+            let id = next_id(engine, self.ids[e], acts[e], &eps[e]);
             self.ids[e] = id;
             s.next[e] = match form {
                 Intrinsic::None => 0.0,
@@ -372,4 +379,25 @@ impl Shaper {
             out.value[e] = s.next[e];
         }
     }
+}
+
+/// The id of the state an episode stepped to from `id` with `a`: the successor table's
+/// entry in a deterministic world; in a stochastic one the outcome drawn is not the
+/// table's (the intended one), so it is looked up.
+#[inline]
+fn next_id(engine: &Engine<'_>, id: u32, a: u8, ep: &Episode) -> u32 {
+    if engine.world.is_stochastic() {
+        drawn_id(engine, &ep.state)
+    } else {
+        engine.space.succ(id, a)
+    }
+}
+
+/// The id of a state a stochastic world's episode reached: in the state space, which
+/// holds every state of positive probability from the start.
+#[inline]
+fn drawn_id(engine: &Engine<'_>, s: &fulcrum_shared::State) -> u32 {
+    engine.space.id(s).expect(
+        "a sampled outcome is in the state space (it holds every state of positive probability)",
+    )
 }

@@ -18,6 +18,11 @@
 //! an episode ends resets that environment (its action is ignored) and reports reward 0,
 //! not terminated, not truncated, and the initial observation. The step itself runs with
 //! the GIL released; other threads must not touch these arrays while it runs.
+//!
+//! In a stochastic world each environment draws its outcomes from its own ChaCha8
+//! generator, seeded by [`VecCore::seed`] (environment e's stream depends on its seed
+//! alone, so one environment seeded s replays environment e of a vector seeded s - e);
+//! a deterministic world draws nothing.
 
 use std::sync::Arc;
 
@@ -27,6 +32,8 @@ use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods,
 };
 use pyo3::prelude::*;
+use rand::{RngCore, SeedableRng};
+use rand_chacha::ChaCha8Rng;
 
 use crate::errors::value_error;
 use crate::shaper::{Shaper, ShaperBufs, ShaperViews};
@@ -62,6 +69,8 @@ pub struct VecCore {
     states: Py<PyArray2<u8>>,
     shapers: Vec<Shaper>,
     steps: u64,
+    /// Environment e's generator for a stochastic world's outcomes.
+    rngs: Vec<ChaCha8Rng>,
 }
 
 /// Mutable views of the step buffers, for one step with the GIL released.
@@ -242,12 +251,6 @@ impl VecCore {
         let view: View = view.parse().map_err(value_error)?;
         let pyworld = crate::world::world_arg(world)?;
         let w = Arc::clone(&pyworld.get().world);
-        if w.is_stochastic() {
-            return Err(value_error(format!(
-                "world '{}' is stochastic ([dynamics] slip or a rule's p): fulcrum.empowerment computes its exact empowerment, but environments do not sample its dynamics yet",
-                w.name
-            )));
-        }
         let spec = view.spec(&w);
         let n = num_envs;
         let na = w.num_actions();
@@ -269,10 +272,27 @@ impl VecCore {
             pyworld,
             shapers: Vec::new(),
             steps: 0,
+            rngs: (0..n as u64).map(ChaCha8Rng::seed_from_u64).collect(),
         };
         let mut me = core;
         me.reset(py, None)?;
         Ok(me)
+    }
+
+    /// Seed environment e's generator (a stochastic world's outcomes) with `seeds[e]`;
+    /// one seed per environment.
+    fn seed(&mut self, seeds: Vec<u64>) -> PyResult<()> {
+        if seeds.len() != self.rngs.len() {
+            return Err(value_error(format!(
+                "{} seeds for {} environments: give one per environment",
+                seeds.len(),
+                self.rngs.len()
+            )));
+        }
+        for (r, s) in self.rngs.iter_mut().zip(seeds) {
+            *r = ChaCha8Rng::seed_from_u64(s);
+        }
+        Ok(())
     }
 
     /// Reset every episode, or those where `mask` is true.
@@ -336,12 +356,13 @@ impl VecCore {
             }
         }
         let (w, view, spec) = (&*self.world, self.view, &self.spec);
-        let (eps, ended, was_reset, acts, shapers) = (
+        let (eps, ended, was_reset, acts, shapers, rngs) = (
             &mut self.eps,
             &mut self.ended,
             &mut self.was_reset,
             &self.acts,
             &mut self.shapers,
+            &mut self.rngs,
         );
         py.detach(|| {
             let (c, f, na) = (spec.cells(), spec.flags, w.num_actions());
@@ -357,7 +378,8 @@ impl VecCore {
                     v.terminated[e] = false;
                     v.truncated[e] = false;
                 } else {
-                    let o = w.env_step(&mut eps[e], acts[e]);
+                    let r = &mut rngs[e];
+                    let o = w.env_step_drawn(&mut eps[e], acts[e], || r.next_u64());
                     ended[e] = o.terminated || o.truncated;
                     was_reset[e] = false;
                     v.reward[e] = o.reward;

@@ -257,7 +257,33 @@ impl PyWorld {
         Ok(PyBytes::new(py, &self.state_arg(state)?.to_bytes()))
     }
 
-    /// The state after `action` (an index or a name: N, E, S, W, apply, a tool), packed.
+    /// The outcomes of `action` in `state` with their probabilities, as (packed state,
+    /// probability) pairs summing to 1; one pair in a deterministic world.
+    fn outcomes<'py>(
+        &self,
+        py: Python<'py>,
+        state: &Bound<'py, PyAny>,
+        action: &Bound<'py, PyAny>,
+    ) -> PyResult<Vec<(Bound<'py, PyBytes>, f64)>> {
+        let s = self.state_arg(state)?;
+        let a = action_arg(&self.world, action)?;
+        let mut out = Vec::new();
+        self.world.outcomes(&s, a, &mut out);
+        Ok(out
+            .into_iter()
+            .map(|(t, p)| (PyBytes::new(py, &t.to_bytes()), p))
+            .collect())
+    }
+
+    /// Whether anything is left to chance (a slip above 0 or a rule with p below 1).
+    #[getter]
+    fn stochastic(&self) -> bool {
+        self.world.is_stochastic()
+    }
+
+    /// The state after `action` (an index or a name: N, E, S, W, apply, a tool), packed;
+    /// in a stochastic world the intended outcome (no slip, the rule acting): its
+    /// distribution is `outcomes`.
     fn step<'py>(
         &self,
         py: Python<'py>,

@@ -240,3 +240,75 @@ def test_a_crop_is_the_full_maps_window_at_random_states(name, r):
 def test_a_bad_view_is_one_clear_sentence():
     with pytest.raises(ValueError, match=r"unknown view 'crop:0' \(views: full, or crop:R"):
         fulcrum.make_vec("room", num_envs=1, view="crop:0")
+
+
+# exp1-tree-slip: moves slip with probability 0.1, each of the three other directions
+# then taken with 0.1 / 3 (docs/world.md, "Stochastic worlds"). From the start (1,4)
+# east: (2,4) with 0.9, north (1,3) and south (1,5) with 1/30 each, west into the wall
+# (stays at (1,4)) with 1/30. Hand-derived from the rules, not from the code.
+SLIP_EAST = {(2, 4): 0.9, (1, 3): 0.1 / 3, (1, 5): 0.1 / 3, (1, 4): 0.1 / 3}
+
+
+def agent_cells(glyphs: np.ndarray) -> list[tuple[int, int]]:
+    """The agent's (x, y) in each environment's full-view glyphs."""
+    return [(int(c[1]), int(c[0])) for c in (np.argwhere(g == 3)[0] for g in glyphs)]
+
+
+def test_a_stochastic_world_samples_its_outcomes_at_their_probabilities():
+    w = fulcrum.World("exp1-tree-slip")
+    assert w.stochastic and not fulcrum.World("exp1-tree").stochastic
+    start = w.pack("agent=1,4 mode=normal tree=intact")
+    got = {}
+    for packed, p in w.outcomes(start, "E"):
+        d = w.describe(packed)
+        xy = tuple(int(v) for v in d.split("agent=")[1].split()[0].split(","))
+        got[xy] = p
+    assert got == pytest.approx(SLIP_EAST)
+    # 20 x 2000 sampled first steps east: Pearson's chi-square against the hand
+    # probabilities, 3 degrees of freedom; 16.27 is its 0.999 quantile.
+    env = fulcrum.make_vec("exp1-tree-slip", num_envs=2000, seed=11)
+    counts = dict.fromkeys(SLIP_EAST, 0)
+    for _ in range(20):
+        env.reset()
+        obs, *_ = env.step(np.full(2000, E))
+        for xy in agent_cells(obs["glyphs"]):
+            counts[xy] += 1
+    n = sum(counts.values())
+    assert n == 40_000
+    chi2 = sum((counts[k] - n * p) ** 2 / (n * p) for k, p in SLIP_EAST.items())
+    assert chi2 < 16.27, (counts, chi2)
+
+
+def run_actions(env, actions):
+    """The packed states after each of ``actions`` (rows: steps)."""
+    out = []
+    for a in actions:
+        env.step(a)
+        out.append(env.states.copy())
+    return np.stack(out)
+
+
+def test_the_seed_fixes_a_stochastic_worlds_episodes():
+    rng = np.random.default_rng(1)
+    acts = rng.integers(0, 4, size=(150, 3))
+    a = run_actions(fulcrum.make_vec("exp1-tree-slip", num_envs=3, seed=5), acts)
+    b = run_actions(fulcrum.make_vec("exp1-tree-slip", num_envs=3, seed=5), acts)
+    c = run_actions(fulcrum.make_vec("exp1-tree-slip", num_envs=3, seed=6), acts)
+    assert (a == b).all()
+    assert (a != c).any()
+    # A reset with a seed starts the same streams again.
+    env = fulcrum.make_vec("exp1-tree-slip", num_envs=3, seed=9)
+    env.step(acts[0])
+    env.reset(seed=5)
+    assert (run_actions(env, acts) == a).all()
+    # Environment e of a vector seeded s is one environment seeded s + e.
+    for e in range(3):
+        single = fulcrum.FulcrumEnv("exp1-tree-slip")
+        single.reset(seed=5 + e)
+        states = []
+        for t in range(150):
+            _, _, term, trunc, _ = single.step(int(acts[t, e]))
+            states.append(np.frombuffer(single.state, dtype=np.uint8))
+            if term or trunc:
+                break
+        assert (np.stack(states) == a[: len(states), e]).all()

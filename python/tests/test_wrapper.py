@@ -133,10 +133,32 @@ def test_bad_settings_raise_value_error_with_the_cli_sentence():
         EmpowermentReward(gym.make_vec("CartPole-v1", num_envs=1))
 
 
-def test_stochastic_worlds_are_refused_by_environments_in_one_sentence():
-    # Their exact empowerment is computed, but episodes do not sample their dynamics.
-    for make in (lambda: fulcrum.make_vec("exp1-tree-slip", num_envs=1),
-                 lambda: gym.make("fulcrum/exp1-tree-v0") and fulcrum.make_vec("exp2-slip", num_envs=2)):
-        with pytest.raises(ValueError, match="is stochastic") as e:
-            make()
-        assert "\n" not in str(e.value)
+def test_empowerment_reward_on_a_stochastic_world_pays_the_noisy_channels_e():
+    # exp1-tree-slip: along sampled episodes the bonus's E(s') is the capacity of the
+    # noisy channel at the state the draw reached (fulcrum.empowerment.value, checked
+    # against the NumPy brute force in test_empowerment), h 8 without the axe and 3
+    # with it; the state reached is the draw's, not the intended move's.
+    venv = fulcrum.make_vec("exp1-tree-slip", num_envs=2, seed=3)
+    env = EmpowermentReward(venv, form="additive")
+    assert venv.world.stochastic
+    rng = np.random.default_rng(0)
+    by_h = {3: ([], []), 8: ([], [])}
+    ended = [False, False]
+    for _ in range(300):
+        obs, _, term, trunc, info = env.step(rng.integers(0, 9, size=2))
+        for e in range(2):
+            # The step after an episode's end is its reset (next-step autoreset).
+            if ended[e]:
+                ended[e] = False
+                continue
+            ended[e] = bool(term[e] or trunc[e])
+            states, got = by_h[3 if obs["flags"][e][0] == 1 else 8]
+            states.append(venv.states[e].tobytes())
+            got.append(float(info["empowerment"][e]))
+    for h, (states, got) in by_h.items():
+        if states:
+            want = fulcrum.empowerment.value(
+                venv.world, states, tool="axe", objects="tree", horizon=h
+            )
+            assert got == pytest.approx(list(want), abs=1e-6), h
+    assert len({round(v, 6) for v in by_h[8][1]}) >= 2

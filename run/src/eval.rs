@@ -18,7 +18,7 @@ use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::process::Evaluate;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::{View, World};
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::bad;
@@ -167,7 +167,8 @@ pub fn evaluate(
 }
 
 /// Plays `episodes` episodes of `policy` on `world` seen through `view`: greedy, or
-/// sampled with a ChaCha generator seeded by `seed`.
+/// sampled with a ChaCha generator seeded by `seed`; the same generator draws a
+/// stochastic world's outcomes (greedy play too: the policy is greedy, the world is not).
 pub fn play(
     policy: &mut Policy,
     view: View,
@@ -193,7 +194,7 @@ pub fn play(
                 act[0]
             };
             let prev = ep.state;
-            let o = world.env_step(&mut ep, a);
+            let o = world.env_step_drawn(&mut ep, a, || rng.next_u64());
             view.update(world, &prev, &ep.state, &mut g, &mut f);
             ret += o.reward as f64;
             if o.terminated || o.truncated {

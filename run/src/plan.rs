@@ -12,7 +12,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::preset::Preset;
-use fulcrum_shared::config::{ChannelTool, HorizonMode, RunConfig};
+use fulcrum_shared::config::{ChannelTool, EmpowermentModel, HorizonMode, RunConfig};
 use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
@@ -34,6 +34,8 @@ pub struct TrainRequest {
     pub intrinsic: Option<Intrinsic>,
     /// `switch` (held / not-held horizons) or `fixed` (one horizon).
     pub horizon_mode: Option<HorizonMode>,
+    /// The dynamics E is computed on (`exact` or `deterministic`).
+    pub empowerment_model: Option<EmpowermentModel>,
     /// Two value heads (extrinsic and intrinsic returns apart).
     pub intrinsic_value_head: bool,
     /// Discount of the intrinsic value head.
@@ -239,7 +241,6 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
 pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
     let spec = a.world.clone().unwrap_or_default();
     let w = load_world(&spec)?;
-    refuse_stochastic(&w, "trained")?;
     // A file path is stored absolute so that a resume from elsewhere finds it.
     let world_spec =
         if fulcrum_shared::builtin::source(&spec).is_none() && Path::new(&spec).exists() {
@@ -291,6 +292,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         empowerment: form.uses_service(),
         intrinsic: form,
         horizon_mode: mode,
+        empowerment_model: a.empowerment_model.unwrap_or_default(),
         tool: a.tool.clone().unwrap_or_default(),
         objects: a.objects.clone().unwrap_or_default(),
         horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
@@ -343,7 +345,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             cfg.beta = form.default_beta(
                 e.beta,
                 max_potential(
-                    &w,
+                    &model_world(&w, cfg.empowerment_model),
                     cfg.tool.as_request(),
                     (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
                     cfg.horizon_unequipped,
@@ -373,17 +375,13 @@ fn max_potential(
     Ok(phi.iter().copied().fold(0.0f32, f32::max) as f64)
 }
 
-/// A stochastic world is refused where its dynamics would have to be sampled (training,
-/// evaluation, recording): those paths step the world deterministically, and would
-/// train on the intended outcomes while the service answers for the noisy ones.
-pub fn refuse_stochastic(w: &World, what: &str) -> Result<()> {
-    if w.is_stochastic() {
-        return bad(format!(
-            "world '{}' is stochastic ([dynamics] slip or a rule's p): its exact empowerment is computed (fulcrum empowerment, fulcrum serve), but it cannot be {what} yet, since episodes do not sample its dynamics",
-            w.name
-        ));
+/// The world E is computed on under `model`: the world itself, or its deterministic
+/// twin (the same file with nothing left to chance, the same content hash).
+pub fn model_world(w: &World, model: EmpowermentModel) -> std::borrow::Cow<'_, World> {
+    match model {
+        EmpowermentModel::Exact => std::borrow::Cow::Borrowed(w),
+        EmpowermentModel::Deterministic => std::borrow::Cow::Owned(w.without_chance()),
     }
-    Ok(())
 }
 
 /// An explicit step count must be whole updates: a run never stops in the middle of

@@ -17,7 +17,7 @@ use fulcrum_learner::paths::RunPaths;
 use fulcrum_shared::checkpoint;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
-use rand::SeedableRng;
+use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::bad;
@@ -65,7 +65,7 @@ pub fn record(
             frames.push(frame(w, &s, &value, format!("{caption} E={here:.2}")));
             cfg.view.observe(w, &s, &mut g, &mut f);
             policy.act(&g, &f, &mut rng, &mut act, &mut lp, &mut v);
-            let o = w.env_step(&mut ep, act[0]);
+            let o = w.env_step_drawn(&mut ep, act[0], || rng.next_u64());
             ret += o.reward;
             e_sum += value(&ep.state).unwrap_or(0.0);
             caption = format!("t={} {}", ep.t, w.action_name(act[0]));

@@ -33,7 +33,7 @@ use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
 use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::config::{EmpowermentModel, RunConfig};
 
 use crate::error::bad;
 use crate::process::{
@@ -231,6 +231,12 @@ impl Supervisor {
         }
         if self.cfg.form().horizon_sum() {
             args.push("--horizon-sum".into());
+        }
+        if self.cfg.empowerment_model != EmpowermentModel::Exact {
+            args.extend([
+                "--model".into(),
+                self.cfg.empowerment_model.name().to_string(),
+            ]);
         }
         let mut cmd = self.command(&args, cores());
         // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.

@@ -46,6 +46,21 @@ impl World {
         self.stochastic
     }
 
+    /// The same map with nothing left to chance: slip 0 and every rule's p 1. Its
+    /// dynamics are [`World::step`]'s (the intended outcome), and it keeps the source
+    /// text, name and content hash of `self`: it is the same file read as if it were
+    /// deterministic (what `--empowerment-model deterministic` computes E on). A
+    /// deterministic world is returned as it is.
+    pub fn without_chance(&self) -> World {
+        let mut w = self.clone();
+        w.slip = 0.0;
+        for r in w.rules.iter_mut().chain(w.tool_rules.iter_mut().flatten()) {
+            r.p = 1.0;
+        }
+        w.stochastic = false;
+        w
+    }
+
     /// The directions a move `a` (0..4) may go, with their probabilities: the intended
     /// one first, then the other three in increasing order.
     fn slip_dirs(&self, a: u8) -> [(u8, f64); 4] {

@@ -56,6 +56,10 @@ pub struct RunConfig {
     /// How the horizon follows the inventory (`switch` or `fixed`).
     #[serde(default)]
     pub horizon_mode: HorizonMode,
+    /// The dynamics the service's table is computed on (a configuration written before
+    /// stochastic worlds reads as `exact`, which is what it meant).
+    #[serde(default)]
+    pub empowerment_model: EmpowermentModel,
     /// Tool of the channel (`default`, `auto`, `all` or a tool).
     pub tool: ChannelTool,
     /// Objects of interest, comma separated (empty = the world's default).
@@ -144,6 +148,44 @@ impl FromStr for HorizonMode {
             "fixed" => Ok(HorizonMode::Fixed),
             other => Err(format!(
                 "unknown horizon mode '{other}' (modes: switch, fixed)"
+            )),
+        }
+    }
+}
+
+/// The dynamics the empowerment table is computed on. In a deterministic world both
+/// models are the same table.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum EmpowermentModel {
+    /// The world as it is: in a stochastic world the channel capacity of its noisy
+    /// dynamics (Blahut-Arimoto).
+    #[default]
+    Exact,
+    /// The same map with nothing left to chance (slip 0, every rule's p 1;
+    /// [`crate::World::without_chance`]): the values an agent that ignores the noise
+    /// would compute.
+    Deterministic,
+}
+
+impl EmpowermentModel {
+    /// The name `--empowerment-model` takes and `config.toml` writes.
+    pub fn name(self) -> &'static str {
+        match self {
+            EmpowermentModel::Exact => "exact",
+            EmpowermentModel::Deterministic => "deterministic",
+        }
+    }
+}
+
+impl FromStr for EmpowermentModel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "exact" => Ok(EmpowermentModel::Exact),
+            "deterministic" => Ok(EmpowermentModel::Deterministic),
+            other => Err(format!(
+                "unknown empowerment model '{other}' (models: exact, deterministic)"
             )),
         }
     }
@@ -451,6 +493,7 @@ mod tests {
             empowerment: false,
             intrinsic: Intrinsic::None,
             horizon_mode: HorizonMode::Switch,
+            empowerment_model: EmpowermentModel::Exact,
             tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,

@@ -19,11 +19,7 @@ pub fn run(a: &EvalArgs) -> Result<()> {
     let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
     let run_world = load_world(&cfg.world)?;
     let world = match &a.world {
-        Some(w) => {
-            let w = load_world(w)?;
-            fulcrum_run::plan::refuse_stochastic(&w, "played")?;
-            w
-        }
+        Some(w) => load_world(w)?,
         None => run_world.clone(),
     };
     let ckpt = a.checkpoint.clone().unwrap_or_else(|| paths.checkpoint());

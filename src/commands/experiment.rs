@@ -51,6 +51,11 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
                 "--no-action-mask".to_string(),
             ],
             "paper" => vec!["--paper".to_string()],
+            "horizon-potential-deterministic" => {
+                let mut v = with_beta("horizon-potential", a.beta);
+                v.extend(["--empowerment-model".into(), "deterministic".into()]);
+                v
+            }
             "cleanrl" | "rllib" => vec![
                 "--no-empowerment".to_string(),
                 "--ppo-preset".to_string(),
@@ -63,7 +68,7 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
             }
             other => {
                 return bad(format!(
-                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, first-visit, count, paper, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
+                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, horizon-potential-deterministic, first-visit, count, paper, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
                 ))
             }
         };

@@ -30,10 +30,16 @@ pub fn run(a: &ServeArgs) -> Result<()> {
             a.max_clients
         ));
     }
-    let w = world(&a.world)?;
-    let set = objects_or_default(&w, a.objects.as_deref())?;
-    let e = engine(&w)?;
-    let tool = tool_sel(&w, &e, a.tool.as_deref(), &set)?;
+    let world_itself = world(&a.world)?;
+    let model: fulcrum_shared::config::EmpowermentModel =
+        a.model.parse().map_err(fulcrum_run::BadRequest)?;
+    // The deterministic twin keeps the file's content hash, so the actors of the
+    // world itself are answered.
+    let w = fulcrum_run::plan::model_world(&world_itself, model);
+    let w = &*w;
+    let set = objects_or_default(w, a.objects.as_deref())?;
+    let e = engine(w)?;
+    let tool = tool_sel(w, &e, a.tool.as_deref(), &set)?;
     let hu = a
         .horizon_unequipped
         .unwrap_or(w.empowerment.horizon_unequipped);
@@ -59,8 +65,8 @@ pub fn run(a: &ServeArgs) -> Result<()> {
             .collect();
         eprintln!(
             "tool selection for {}: {} ({})",
-            set_name(&w, &set),
-            tool.name(&w),
+            set_name(w, &set),
+            tool.name(w),
             col.join(", ")
         );
     }
@@ -79,15 +85,20 @@ pub fn run(a: &ServeArgs) -> Result<()> {
     let (_, stats) = serve(&mut tables, |d| {
         let _ = writeln!(
             std::io::stdout(),
-            "fulcrum serve: ready: world {} (hash {:016x}), {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
+            "fulcrum serve: ready: world {} (hash {:016x}){}, {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
             w.name,
             d.world_hash,
+            if model == fulcrum_shared::config::EmpowermentModel::Deterministic {
+                " computed as if deterministic"
+            } else {
+                ""
+            },
             d.states,
             match tool {
                 ToolSel::All => "all".to_string(),
                 ToolSel::Tool(j) => w.tools[j].name.clone(),
             },
-            set_name(&w, &set),
+            set_name(w, &set),
             a.namespace
         );
         let _ = std::io::stdout().flush();

@@ -152,3 +152,44 @@ fn serve_answers_a_stochastic_world() {
         assert!(want.iter().any(|&v| v > 0.0));
     }
 }
+
+// `serve --model deterministic` (what `train --empowerment-model deterministic` starts):
+// the noisy world's actors are answered (the same hash) with the table of the map
+// without its noise, which is exp1-tree's, a file written apart: state by state.
+#[test]
+fn serve_computes_a_noisy_world_as_if_deterministic_when_asked() {
+    use fulcrum_empowerment::service::{Ask, Client};
+    use fulcrum_empowerment::{Engine, Limits, ToolSel};
+    use fulcrum_shared::{load_world, ObjectSet};
+    let noisy = load_world("exp1-tree-slip").unwrap();
+    let plain = load_world("exp1-tree").unwrap();
+    let e = Engine::new(&plain, Limits::default()).unwrap();
+    let tree = ObjectSet::Objects(vec![plain.object_index("tree").unwrap()]);
+    let states: Vec<_> = Engine::new(&noisy, Limits::default())
+        .unwrap()
+        .space
+        .states()
+        .to_vec();
+    let ns = crate::util::namespace("slip-det");
+    let _serve = Serve::start("exp1-tree-slip", &ns, &["--model", "deterministic"]);
+    let mut c = Client::connect(&ns, &noisy, std::time::Duration::from_secs(30)).unwrap();
+    let got = c.values(Ask::Lookup, &states, 256).unwrap();
+    let want: Vec<f32> = {
+        let t = e
+            .lookup_values(ToolSel::Tool(0), &tree, 8, 3, false)
+            .unwrap();
+        states
+            .iter()
+            .map(|s| t[e.space.id(s).unwrap() as usize])
+            .collect()
+    };
+    assert_eq!(got.values, want);
+    let noisy_table = Engine::new(&noisy, Limits::default())
+        .unwrap()
+        .lookup_values(ToolSel::Tool(0), &tree, 8, 3, false)
+        .unwrap();
+    assert_ne!(
+        got.values, noisy_table,
+        "the service served the noisy channel"
+    );
+}

@@ -199,6 +199,35 @@ fn empowerment_stochastic(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
         unit: "ms",
         note: format!("(axe -> tree, h = 8 unequipped / 3 equipped, {n} states; goal <= 60 s)"),
     });
+    // exp2-slip as a run's service builds it: the world's objects, tool selection by the
+    // matrix (equation 6), the world's horizons.
+    let w = load_world("exp2-slip")?;
+    let t0 = Instant::now();
+    let e = Engine::new(&w, limits)?;
+    let set = fulcrum_empowerment::request::objects_or_default(&w, None)?;
+    let tool = fulcrum_empowerment::request::tool_sel(&w, &e, Some("auto"), &set)?;
+    let (hu, he) = (
+        w.empowerment.horizon_unequipped,
+        w.empowerment.horizon_equipped,
+    );
+    let table = e.lookup_values(tool, &set, hu, he, false)?;
+    let table_ms = t0.elapsed().as_secs_f64() * 1e3;
+    ensure!(
+        table.iter().all(|v| v.is_finite()),
+        "the exp2-slip table is not finite"
+    );
+    figs.push(Figure {
+        zero_ok: false,
+        name: "exp2-slip service table incl. enumeration and tool selection".into(),
+        value: table_ms,
+        unit: "ms",
+        note: format!(
+            "({} -> {}, h = {hu} unequipped / {he} equipped, {} states; goal <= 5 min)",
+            tool.name(&w),
+            fulcrum_empowerment::set_name(&w, &set),
+            e.space.len()
+        ),
+    });
     Ok(())
 }
 

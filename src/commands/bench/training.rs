@@ -239,18 +239,34 @@ pub(super) fn train_sps(
 }
 
 /// End-to-end `fulcrum train exp1-tree` with empowerment: env steps per second of the
-/// learner's updates (median over updates after the first), defaults for this machine.
+/// learner's updates (median over updates after the first), defaults for this machine;
+/// and the same on exp1-tree-slip (its outcomes drawn by the actors, its table the
+/// capacities of the noisy channel), the two worlds' runs alternating so that both see
+/// the same machine.
 pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
     // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
     let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
-    let steps = if quick { 16 } else { 100 } * batch;
-    let (mut sps, cfg) = train_sps(&["exp1-tree", "--steps", &steps.to_string()], &dir)?;
-    sps.sort_by(f64::total_cmp);
+    let steps = (if quick { 16 } else { 100 } * batch).to_string();
+    let pairs = if quick { 1 } else { 3 };
+    let (mut plain, mut noisy) = (Vec::new(), Vec::new());
+    let mut cfg = None;
+    for _ in 0..pairs {
+        let (sps, c) = train_sps(&["exp1-tree", "--steps", &steps], &dir)?;
+        plain.extend(sps);
+        cfg = Some(c);
+        noisy.extend(train_sps(&["exp1-tree-slip", "--steps", &steps], &dir)?.0);
+    }
+    let cfg = cfg.context("no run")?;
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (p, n) = (median(&mut plain), median(&mut noisy));
     figs.push(Figure {
         zero_ok: false,
         name: "end-to-end training env steps/s".into(),
-        value: sps[sps.len() / 2],
+        value: p,
         unit: "steps/s",
         note: format!(
             "(train exp1-tree, beta {}, {} actor(s) x {} worlds, {} learner thread(s), median of {} updates; goal >= 50k)",
@@ -258,7 +274,18 @@ pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
             cfg.actors,
             cfg.envs_per_actor,
             cfg.learner_threads,
-            sps.len()
+            plain.len()
+        ),
+    });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "end-to-end training env steps/s, exp1-tree-slip".into(),
+        value: n,
+        unit: "steps/s",
+        note: format!(
+            "(train exp1-tree-slip, the same settings, median of {} updates; {:.2} of exp1-tree's, goal >= 0.90)",
+            noisy.len(),
+            n / p
         ),
     });
     Ok(())
