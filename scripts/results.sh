@@ -129,6 +129,29 @@ if [[ "$mode" != pictures || -d experiments/trap-check ]]; then
   python3 scripts/trap_check_table.py > "$out/trap-check-table.md"
 fi
 
+# Noisy worlds: the paper's worlds with slip 0.1 and every tool rule at p = 0.8; the
+# baseline, the additive bonus, train's default (the noisy channel's capacities) and the
+# same computed as if the world were deterministic; 10 seeds, the masked budgets.
+if [[ "$mode" != pictures || -d experiments/noisy ]]; then
+  for spec in "exp1-tree-slip 499712" "exp2-slip 2998272"; do
+    set -- $spec
+    quiet_if_pictures $f experiment "$1" --seeds 10 --steps "$2" \
+      --arms baseline,additive,horizon-potential,horizon-potential-deterministic \
+      --out "experiments/noisy/$1"
+    cp "experiments/noisy/$1/summary.md" "$out/noisy-$1-summary.md"
+    cp "experiments/noisy/$1/summary.json" "$out/noisy-$1-summary.json"
+    cp "experiments/noisy/$1/plots/solved.png" "$out/noisy-$1-solved.png"
+  done
+fi
+# Landscapes of the noisy worlds beside the deterministic ones.
+for w in exp1-tree exp1-tree-slip; do
+  $f empowerment landscape $w --tool axe --objects tree --horizon 8 --png "$out/noisy-$w-axe-tree-h8.png" > /dev/null
+  $f empowerment landscape $w --tool all --objects agent --horizon 2 --png "$out/noisy-$w-agent-h2.png" > /dev/null
+done
+for w in exp2 exp2-slip; do
+  $f empowerment landscape $w --png "$out/noisy-$w-default.png" > /dev/null
+done
+
 # Tables II and III, and exp3's matrix.
 $f empowerment matrix exp1-tree --joint tree+wall --png "$out/exp1-tree-matrix.png" > "$out/exp1-tree-matrix.txt"
 $f empowerment matrix exp2 --joint boulder+door --png "$out/exp2-matrix.png" > "$out/exp2-matrix.txt"

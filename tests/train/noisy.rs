@@ -40,15 +40,47 @@ fn tail_success(dir: &Path, n: usize) -> f64 {
 }
 
 /// A run on a noisy room stopped and resumed equals one that never stopped (the
-/// outcomes come from the same per-chunk stream), with the default form, the additive
-/// bonus and periodic evaluations (which draw outcomes too).
+/// outcomes come from the same per-chunk stream), with every form whose state is
+/// checkpointed, E as if deterministic, and periodic evaluations (which draw outcomes
+/// too). The count form's visit counts live in the service and start again from zero on
+/// a resume (README, "count"), in any world: it only has to train here.
 #[test]
-fn a_run_on_a_noisy_world_resumes_bit_for_bit() {
+fn a_run_on_a_noisy_world_resumes_bit_for_bit_with_every_form() {
     let home = TempDir::new("noisy-worlds");
     let noisy = write(&home, "room-noisy.toml", &room_with(NOISE));
-    resumed_equals_uninterrupted_on(&noisy, "noisy-hp", &[]);
-    resumed_equals_uninterrupted_on(&noisy, "noisy-add", &["--intrinsic", "additive"]);
-    resumed_equals_uninterrupted_on(&noisy, "noisy-eval", &["--eval-every", "2"]);
+    resumed_equals_uninterrupted_on(&noisy, "noisy-hp", &["--eval-every", "2"]);
+    for form in ["additive", "potential", "first-visit"] {
+        resumed_equals_uninterrupted_on(&noisy, &format!("noisy-{form}"), &["--intrinsic", form]);
+    }
+    resumed_equals_uninterrupted_on(
+        &noisy,
+        "noisy-det",
+        &["--empowerment-model", "deterministic"],
+    );
+    let dir = home.join("count");
+    let args = [
+        &noisy,
+        "--intrinsic",
+        "count",
+        "--actors",
+        "1",
+        "--steps",
+        "768",
+        "--envs-per-actor",
+        "4",
+        "--steps-per-chunk",
+        "32",
+        "--out",
+        dir.to_str().unwrap(),
+    ];
+    let (s, err, _) = finish(train(&args), Duration::from_secs(120));
+    assert!(s.success(), "{err}");
+    let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
+    assert_eq!(rows.len(), 6);
+    assert!(
+        rows.iter().any(|r| r.intrinsic_mean > 0.0),
+        "count paid nothing"
+    );
 }
 
 /// The actors do draw: the same map and seed without the noise trains on other
