@@ -769,11 +769,40 @@ fn apply_edits(base: &str, edits: &[Edit]) -> String {
     cs.into_iter().collect()
 }
 
-/// Parse; when a world comes out, it must be usable: step every action from the start
-/// and from each successor, and read its own description back.
+/// Parse; a refusal is one sentence placed as `fuzz.toml:LINE:COL: ...` with the line
+/// within the text (or just past its end) and a column from 1; when a world comes out,
+/// it must be usable: step every action from the start and from each successor, and
+/// read its own description back.
 fn parse_and_use(text: &str) {
-    let Ok(w) = parse_world(text, "fuzz.toml") else {
-        return;
+    let w = match parse_world(text, "fuzz.toml") {
+        Ok(w) => w,
+        Err(e) => {
+            let m = e.to_string();
+            assert!(!m.contains('\n'), "not one line: {m:?}");
+            let rest = m
+                .strip_prefix("fuzz.toml:")
+                .unwrap_or_else(|| panic!("does not name the file: {m:?}"));
+            let mut parts = rest.splitn(3, ':');
+            let line: usize = parts
+                .next()
+                .and_then(|l| l.parse().ok())
+                .unwrap_or_else(|| panic!("names no line: {m:?}"));
+            let col: usize = parts
+                .next()
+                .and_then(|c| c.parse().ok())
+                .unwrap_or_else(|| panic!("names no column: {m:?}"));
+            let lines = text.split('\n').count();
+            assert!(
+                line >= 1 && line <= lines + 1,
+                "line {line} of {lines}: {m:?}"
+            );
+            assert!(col >= 1, "column {col}: {m:?}");
+            assert!(
+                parts.next().is_some_and(|r| r.len() > 1),
+                "no sentence after the place: {m:?}"
+            );
+            return;
+        }
     };
     let s0 = w.initial;
     assert!((s0.x as usize) < w.width && (s0.y as usize) < w.height);
