@@ -127,3 +127,8 @@ pub fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
         std::thread::sleep(Duration::from_millis(50));
     }
 }
+
+/// Whether a child's line says it is ready (the child protocol's own reading).
+pub fn is_ready(line: &str) -> bool {
+    fulcrum_shared::lines::ChildLine::parse(line).is_some_and(|c| c.is_ready())
+}

@@ -23,10 +23,11 @@ use zenoh::Wait;
 
 use crate::error::ZenohError;
 use crate::forward::Forwarder;
-use crate::hello::{join, valid_host_name, write_atomic, Hello, Joined};
+use crate::hello::{join, joined_line, valid_host_name, write_atomic, Hello, Joined};
 use crate::secret::Secret;
 use crate::session::{locator, node, open_session, Auth, ZenohOptions};
 use crate::stats::BridgeStats;
+use fulcrum_shared::lines::ChildLine;
 
 /// What an actor host insists on before it joins.
 #[derive(Debug, Clone, Copy)]
@@ -95,7 +96,7 @@ pub fn connect(
     // This host's empowerment service: a stand-in that asks the learner's host.
     let result = if cfg.empowerment {
         let mut fwd = Forwarder::new(&session, &run, &world, stats.clone(), give_up)?;
-        let line = joined.line();
+        let line = joined_line(&joined);
         // This host's actors, whatever their number: the most a service takes.
         let clients = fulcrum_shared::msg::MAX_CLIENTS;
         let r = service::serve_with(
@@ -110,7 +111,7 @@ pub fn connect(
         );
         r.map(|_| ()).map_err(anyhow::Error::from)
     } else {
-        println!("{}", joined.line());
+        println!("{}", joined_line(&joined));
         let _ = std::io::stdout().flush();
         while !STOP.load(Ordering::Relaxed)
             && !done.load(Ordering::Relaxed)
@@ -130,7 +131,7 @@ pub fn connect(
     let _ = session.close().wait();
     eprintln!("fulcrum bridge: stopped: {}", stats.line());
     if done.load(Ordering::Relaxed) {
-        println!("fulcrum bridge: the run is over");
+        println!("{}", ChildLine::RunOver);
         return Ok(());
     }
     match failure {

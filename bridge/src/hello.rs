@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use fulcrum_run::bad;
 use fulcrum_run::process::STOP;
+use fulcrum_shared::lines::ChildLine;
 use fulcrum_shared::traj::HOST_STRIDE;
 use serde::{Deserialize, Serialize};
 use zenoh::Wait;
@@ -77,35 +78,20 @@ pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// What an actor host needs to start its actors (printed by the bridge when ready).
-#[derive(Debug, Clone)]
-pub struct Joined {
-    /// The namespace of this host's shared-memory services.
-    pub local_ns: String,
-    /// The run's tag, for the actors' chunks.
-    pub run_tag: u64,
-    /// This host's index.
-    pub host: u32,
+/// What an actor host needs to start its actors (printed by the bridge when ready, as
+/// [`ChildLine::BridgeJoined`]).
+pub use fulcrum_shared::lines::Joined;
+
+/// The `ready` line the bridge prints once joined.
+pub fn joined_line(j: &Joined) -> String {
+    ChildLine::BridgeJoined(j.clone()).to_string()
 }
 
-impl Joined {
-    /// The `ready` line the bridge prints.
-    pub fn line(&self) -> String {
-        format!(
-            "fulcrum bridge: ready {} {:016x} {}",
-            self.local_ns, self.run_tag, self.host
-        )
-    }
-
-    /// Parse a `ready` line.
-    pub fn parse(line: &str) -> Option<Joined> {
-        let rest = line.strip_prefix("fulcrum bridge: ready ")?;
-        let mut w = rest.split_whitespace();
-        Some(Joined {
-            local_ns: w.next()?.to_string(),
-            run_tag: u64::from_str_radix(w.next()?, 16).ok()?,
-            host: w.next()?.parse().ok()?,
-        })
+/// A bridge's line read as its `ready` line once joined (`None`: another line).
+pub fn parse_joined(line: &str) -> Option<Joined> {
+    match ChildLine::parse(line) {
+        Some(ChildLine::BridgeJoined(j)) => Some(j),
+        _ => None,
     }
 }
 

@@ -59,7 +59,7 @@ pub mod stats;
 pub use connect::{connect, Want};
 pub use error::ZenohError;
 pub use forward::Forwarder;
-pub use hello::{actor_id, default_dir, Hello, Joined};
+pub use hello::{actor_id, default_dir, joined_line, parse_joined, Hello, Joined};
 pub use listen::{listen, serve_lookups};
 pub use secret::{Secret, SECRET_ENV, SECRET_FILE};
 pub use session::{is_loopback, locator, open_session, Auth, ZenohOptions};

@@ -14,6 +14,7 @@ use fulcrum_empowerment::service::Client;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::process::STOP;
 use fulcrum_shared::config::RunConfig;
+use fulcrum_shared::lines::ChildLine;
 use fulcrum_shared::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
 use fulcrum_shared::IpcError;
@@ -68,7 +69,13 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
             Ok(())
         }));
     }
-    println!("fulcrum bridge: ready, listening on {endpoint} for run {ns}");
+    println!(
+        "{}",
+        ChildLine::BridgeListening {
+            endpoint: endpoint.to_string(),
+            run: ns.to_string(),
+        }
+    );
     let _ = std::io::stdout().flush();
     while !STOP.load(Ordering::Relaxed) && threads.iter().all(|t| !t.is_finished()) {
         std::thread::sleep(Duration::from_millis(50));

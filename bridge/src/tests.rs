@@ -22,13 +22,16 @@ pub fn the_ready_line_carries_namespace_tag_and_host() {
         run_tag: 0x00ab_cdef_0123_4567,
         host: 3,
     };
-    assert_eq!(j.line(), "fulcrum bridge: ready t1f.h3 00abcdef01234567 3");
-    let back = Joined::parse(&j.line()).unwrap();
+    assert_eq!(
+        joined_line(&j),
+        "fulcrum bridge: ready t1f.h3 00abcdef01234567 3"
+    );
+    let back = parse_joined(&joined_line(&j)).unwrap();
     assert_eq!(
         (back.local_ns.as_str(), back.run_tag, back.host),
         ("t1f.h3", j.run_tag, 3)
     );
-    assert!(Joined::parse("fulcrum bridge: ready, listening on tcp/x:1 for run t").is_none());
+    assert!(parse_joined("fulcrum bridge: ready, listening on tcp/x:1 for run t").is_none());
     assert_eq!(actor_id(3, 2), 3 * 1024 + 2);
 }
 

@@ -79,23 +79,7 @@ pub struct TrapDetector {
 }
 
 /// What the window shows when the detector marks an update.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct TrapSigns {
-    /// The world's episode limit.
-    pub max_steps: u32,
-    /// Env steps since which no episode succeeded (the window's start).
-    pub since_step: u64,
-    /// Mean episode length over the window.
-    pub episode_length: f64,
-    /// beta * intrinsic return / (beta * intrinsic return + task return), per episode.
-    pub intrinsic_share: f64,
-    /// beta * intrinsic return per episode.
-    pub bonus: f64,
-    /// `bonus` as a fraction of the task's reward.
-    pub worth: f64,
-    /// Fraction of the window's steps with E(s') > 0.
-    pub e_positive_frac: f64,
-}
+pub use fulcrum_shared::lines::TrapSigns;
 
 impl TrapDetector {
     /// The detector of a run of `world` with this form and beta (a world without a task

@@ -36,31 +36,9 @@ const RECENT: usize = 16;
 /// The local deadline in multiples of the median gather time.
 const FACTOR: u32 = 10;
 
-/// What the learner tells its supervisor besides its metrics rows.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Notice {
-    /// The learner has waited `waited_s` for this update's chunks and still waits for
-    /// these actors (empty: for any chunk at all).
-    Waiting {
-        /// Seconds since this update's gathering began.
-        waited_s: f64,
-        /// The actors whose chunks are missing.
-        actors: Vec<u32>,
-    },
-    /// The learner goes on without a local actor: its chunk did not come within the
-    /// deadline (`refused` false) or was refused (`refused` true).
-    Stalled {
-        /// The actor.
-        actor: u32,
-        /// Seconds waited for it.
-        waited_s: f64,
-        /// Whether its chunk was refused rather than late.
-        refused: bool,
-    },
-    /// The beacon-trap detector marked an update for the first time in this session
-    /// ([`crate::trap`]).
-    Trap(crate::trap::TrapSigns),
-}
+/// What the learner tells its supervisor besides its metrics rows (a line of the
+/// child protocol, [`fulcrum_shared::lines`]).
+pub use fulcrum_shared::lines::Notice;
 
 /// Refuses a weights buffer with any non-finite number: the weights after `update`.
 pub fn ensure_finite(flat: &[f32], update: u64) -> Result<(), LearnerError> {

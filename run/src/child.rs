@@ -17,6 +17,7 @@ use fulcrum_shared::World;
 use crate::error::{bad, BadRequest};
 use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
 use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
+use fulcrum_shared::lines::{ChildLine, LearnerProgress};
 use fulcrum_shared::load_world;
 
 /// What the supervisor tells a child process.
@@ -62,11 +63,15 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
     let mut paused = false;
     let progress = |row: &MetricsRow, updates: u64| {
         let mut out = std::io::stdout().lock();
-        let _ = writeln!(
-            out,
-            "progress {} {} {} {:.3} {:.3} {:.0}",
-            row.update, updates, row.env_steps, row.success_rate, row.extrinsic_return, row.sps
-        );
+        let line = ChildLine::Progress(LearnerProgress {
+            update: row.update,
+            total: updates,
+            env_steps: row.env_steps,
+            success_rate: row.success_rate,
+            extrinsic_return: row.extrinsic_return,
+            sps: row.sps,
+        });
+        let _ = writeln!(out, "{line}");
         let _ = out.flush();
         let f = *first.get_or_insert(row.update - 1);
         if stop_after.is_some_and(|n| row.update - f >= n) {
@@ -76,7 +81,7 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
     };
     let notice = |n: &Notice| {
         let mut out = std::io::stdout().lock();
-        let _ = writeln!(out, "{}", crate::watchdog::notice_line(n));
+        let _ = writeln!(out, "{}", ChildLine::Notice(n.clone()));
         let _ = out.flush();
     };
     let hooks = Hooks {

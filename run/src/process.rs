@@ -13,6 +13,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
+use fulcrum_shared::lines::ChildLine;
 
 pub use fulcrum_shared::stop::{request_stop, signalled, stopping, STOP};
 
@@ -229,14 +230,16 @@ pub enum Ready<T> {
     Exited(ExitStatus),
 }
 
-/// Starts `cmd` with its stdout piped and waits until the child prints a line
-/// containing `ready`; see [`spawn_until`].
+/// Starts `cmd` with its stdout piped and waits until the child prints a line of the
+/// child protocol that says it is ready ([`ChildLine::is_ready`]); see [`spawn_until`].
 pub fn spawn_until_ready(
     cmd: Command,
     what: &str,
     deadline: Option<Duration>,
 ) -> Result<Ready<()>> {
-    spawn_until(cmd, what, deadline, |l| l.contains("ready").then_some(()))
+    spawn_until(cmd, what, deadline, |l| {
+        ChildLine::parse(l).filter(ChildLine::is_ready).map(|_| ())
+    })
 }
 
 /// Starts `cmd` with its stdout piped and waits until the child prints a line that

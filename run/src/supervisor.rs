@@ -42,9 +42,10 @@ use crate::process::{
 };
 use crate::progress::Progress;
 use crate::restart::{Budget, RestartPolicy};
-use crate::watchdog::{parse_notice, Watchdog};
+use crate::watchdog::Watchdog;
 use fulcrum_learner::trap::TrapDetector;
 use fulcrum_learner::watch::Notice;
+use fulcrum_shared::lines::{ChildLine, LearnerProgress};
 
 /// Exit code of a learner that stopped early on request (after a set number of updates).
 pub const EXIT_PAUSED: i32 = 3;
@@ -392,7 +393,9 @@ impl Supervisor {
                     Err(_) => self.learner_lines = never(),
                 },
                 recv(self.service_lines) -> line => match line {
-                    Ok(l) if l.contains("ready") => self.service_ready(&progress),
+                    Ok(l) if ChildLine::parse(&l).is_some_and(|c| c.is_ready()) => {
+                        self.service_ready(&progress)
+                    }
                     Ok(_) => {}
                     // Closed: the service is exiting; its exit event follows.
                     Err(_) => self.service_lines = never(),
@@ -426,12 +429,12 @@ impl Supervisor {
         // they were all seen and the channel is `never()` already).
         let lines = std::mem::replace(&mut self.learner_lines, never());
         for line in lines.try_iter() {
-            learner_line(progress, &line);
+            progress_only(progress, &line);
         }
         // The reader thread may still be between its last read and its last send:
         // wait for it to close the channel, a moment at most.
         while let Ok(line) = lines.recv_timeout(Duration::from_millis(100)) {
-            learner_line(progress, &line);
+            progress_only(progress, &line);
         }
         progress.finish();
         match s.code() {
@@ -599,26 +602,29 @@ impl Supervisor {
 
     /// A line from the learner: its progress, or a notice.
     fn learner_said(&mut self, progress: &mut Progress, line: &str) {
-        if line.starts_with("progress ") {
-            self.watchdog.updated();
-            return learner_line(progress, line);
-        }
-        match parse_notice(line) {
-            Some(Notice::Waiting { actors, .. }) => self.watchdog.waiting(actors),
-            Some(Notice::Stalled {
+        let notice = match ChildLine::parse(line) {
+            Some(ChildLine::Progress(p)) => {
+                self.watchdog.updated();
+                return learner_progress(progress, &p);
+            }
+            Some(ChildLine::Notice(n)) => n,
+            _ => return,
+        };
+        match notice {
+            Notice::Waiting { actors, .. } => self.watchdog.waiting(actors),
+            Notice::Stalled {
                 actor,
                 waited_s,
                 refused,
-            }) => progress.note(&if refused {
+            } => progress.note(&if refused {
                 format!("the learner refused a chunk of actor {actor}: it goes on without it until its next chunk")
             } else {
                 format!("no chunk from actor {actor} for {waited_s:.1} s: the learner goes on without it until its next chunk")
             }),
-            Some(Notice::Trap(signs)) => progress.note(&format!(
+            Notice::Trap(signs) => progress.note(&format!(
                 "warning: {} (metrics.csv marks the updates in its `trap` column)",
                 TrapDetector::warning(&signs)
             )),
-            None => {}
         }
     }
 
@@ -646,25 +652,23 @@ fn reap(slot: &mut Option<Child>, current: bool) -> Result<Option<ExitStatus>> {
     Ok(s)
 }
 
-/// A line from the learner: `progress U N STEPS SUCCESS RETURN SPS`.
-fn learner_line(progress: &mut Progress, line: &str) {
-    let v: Vec<&str> = line.split_whitespace().collect();
-    if v.first() != Some(&"progress") || v.len() < 7 {
-        return;
+/// A learner's line if it is its progress (its last lines, after it exited).
+fn progress_only(progress: &mut Progress, line: &str) {
+    if let Some(ChildLine::Progress(p)) = ChildLine::parse(line) {
+        learner_progress(progress, &p);
     }
-    let u: u64 = v[1].parse().unwrap_or(0);
+}
+
+/// The learner's progress after an update, on the progress line.
+fn learner_progress(progress: &mut Progress, p: &LearnerProgress) {
     // Runs with actors on other hosts re-plan their updates as hosts come and go.
-    if let Some(total) = v[2]
-        .parse::<u64>()
-        .ok()
-        .filter(|&t| t != progress.total() && t > 0)
-    {
-        progress.set_total(total);
+    if p.total != progress.total() && p.total > 0 {
+        progress.set_total(p.total);
     }
     let msg = format!(
-        "steps {}  success {}  return {}  {} steps/s",
-        v[3], v[4], v[5], v[6]
+        "steps {}  success {:.3}  return {:.3}  {:.0} steps/s",
+        p.env_steps, p.success_rate, p.extrinsic_return, p.sps
     );
-    let total = progress.total();
+    let (u, total) = (p.update, progress.total());
     progress.set(u, msg, |m| format!("update {u}/{total}  {m}"));
 }

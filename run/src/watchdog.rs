@@ -9,7 +9,8 @@
 //! it by design; the service's own start limit bounds that wait).
 //!
 //! Who stalled comes from the learner's notices ([`fulcrum_learner::watch::Notice`]),
-//! which it prints on its stdout as lines: `waiting SECS ACTORS` once a second while it
+//! which it prints on its stdout as lines of the child protocol
+//! ([`fulcrum_shared::lines::ChildLine`]): `waiting SECS ACTORS` once a second while it
 //! waits for chunks, `stalled ACTOR SECS late|refused` when it goes on without a local
 //! actor. A learner that says nothing for several seconds is itself the one that
 //! stalled. (`trap LIMIT SINCE LENGTH SHARE BONUS WORTH DWELL` is no stall: the beacon-trap detector's
@@ -17,9 +18,6 @@
 
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
-
-use fulcrum_learner::trap::TrapSigns;
-use fulcrum_learner::watch::Notice;
 
 /// The watchdog's limit in multiples of the median recent update interval.
 pub const FACTOR: u32 = 20;
@@ -29,72 +27,6 @@ pub const DEFAULT_FLOOR_S: f64 = 300.0;
 const RECENT: usize = 32;
 /// A `waiting` line older than this is no news: the learner itself went quiet.
 const QUIET: Duration = Duration::from_secs(3);
-
-/// The line the learner prints for a notice.
-pub fn notice_line(n: &Notice) -> String {
-    match n {
-        Notice::Waiting { waited_s, actors } => {
-            let list: Vec<String> = actors.iter().map(u32::to_string).collect();
-            let list = if list.is_empty() {
-                "-".to_string()
-            } else {
-                list.join(",")
-            };
-            format!("waiting {waited_s:.1} {list}")
-        }
-        Notice::Stalled {
-            actor,
-            waited_s,
-            refused,
-        } => format!(
-            "stalled {actor} {waited_s:.1} {}",
-            if *refused { "refused" } else { "late" }
-        ),
-        Notice::Trap(t) => format!(
-            "trap {} {} {} {} {} {} {}",
-            t.max_steps,
-            t.since_step,
-            t.episode_length,
-            t.intrinsic_share,
-            t.bonus,
-            t.worth,
-            t.e_positive_frac
-        ),
-    }
-}
-
-/// A learner's line read back as a notice (`None`: not a notice).
-pub fn parse_notice(line: &str) -> Option<Notice> {
-    let v: Vec<&str> = line.split_whitespace().collect();
-    match v.as_slice() {
-        ["waiting", s, list] => Some(Notice::Waiting {
-            waited_s: s.parse().ok()?,
-            actors: if *list == "-" {
-                Vec::new()
-            } else {
-                list.split(',')
-                    .map(str::parse)
-                    .collect::<Result<_, _>>()
-                    .ok()?
-            },
-        }),
-        ["stalled", a, s, how] => Some(Notice::Stalled {
-            actor: a.parse().ok()?,
-            waited_s: s.parse().ok()?,
-            refused: *how == "refused",
-        }),
-        ["trap", limit, since, len, share, bonus, worth, dwell] => Some(Notice::Trap(TrapSigns {
-            max_steps: limit.parse().ok()?,
-            since_step: since.parse().ok()?,
-            episode_length: len.parse().ok()?,
-            intrinsic_share: share.parse().ok()?,
-            bonus: bonus.parse().ok()?,
-            worth: worth.parse().ok()?,
-            e_positive_frac: dwell.parse().ok()?,
-        })),
-        _ => None,
-    }
-}
 
 /// Watches the time since the last update.
 #[derive(Debug)]
@@ -193,9 +125,12 @@ impl Watchdog {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use fulcrum_learner::trap::TrapSigns;
+    use fulcrum_learner::watch::Notice;
 
     #[test]
     fn notices_survive_their_line() {
+        use fulcrum_shared::lines::ChildLine;
         for n in [
             Notice::Waiting {
                 waited_s: 2.5,
@@ -225,9 +160,9 @@ mod tests {
                 refused: true,
             },
         ] {
-            assert_eq!(parse_notice(&notice_line(&n)), Some(n));
+            let line = ChildLine::Notice(n.clone()).to_string();
+            assert_eq!(ChildLine::parse(&line), Some(ChildLine::Notice(n)));
         }
-        assert_eq!(parse_notice("progress 1 2 3 0.1 0.2 300"), None);
     }
 
     #[test]

@@ -36,6 +36,8 @@ pub mod intrinsic;
 pub mod ipc_error;
 /// The network's weight layout, which the learner and the actors share.
 pub mod layout;
+/// The lines child processes print for their parents, typed both ways.
+pub mod lines;
 /// Per-mode action masking from the observation's flags.
 pub mod mask;
 /// Shared-memory message layouts and service names.

@@ -22,12 +22,13 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 
 use crate::cli::ActorHostArgs;
-use fulcrum_bridge::{actor_id, default_dir, Joined};
+use fulcrum_bridge::{actor_id, default_dir, parse_joined};
 use fulcrum_run::bad;
 use fulcrum_run::process::{
     cores, hostname, install_signal_handlers, spawn_until, stop_children, Ready, STOP,
 };
 use fulcrum_run::restart::{Budget, RestartPolicy};
+use fulcrum_shared::lines::ChildLine;
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {
@@ -85,7 +86,7 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         .stdin(Stdio::null())
         .process_group(0);
     // Wait for the bridge to join.
-    let (mut bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, Joined::parse)? {
+    let (mut bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, parse_joined)? {
         Ready::Ready(bridge, joined, rx) => (bridge, joined, rx),
         Ready::Stopped => return Ok(()),
         Ready::Exited(s) => {
@@ -142,7 +143,7 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     let mut over = false;
     let result = loop {
         while let Ok(line) = rx.try_recv() {
-            if line.contains("the run is over") {
+            if ChildLine::parse(&line) == Some(ChildLine::RunOver) {
                 over = true;
             }
         }
@@ -151,7 +152,7 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         }
         if let Some(s) = bridge.try_wait()? {
             while let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
-                over |= line.contains("the run is over");
+                over |= ChildLine::parse(&line) == Some(ChildLine::RunOver);
             }
             break if over || s.success() {
                 eprintln!("fulcrum actor-host: the run is over");

@@ -6,6 +6,7 @@ use std::time::Duration;
 use anyhow::Result;
 use fulcrum_empowerment::service::{serve, ServeConfig, Tables};
 use fulcrum_empowerment::{set_name, Method, ToolSel};
+use fulcrum_shared::lines::ChildLine;
 use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
@@ -83,9 +84,8 @@ pub fn run(a: &ServeArgs) -> Result<()> {
     };
     let mut tables = Tables::new(e, cfg)?;
     let (_, stats) = serve(&mut tables, |d| {
-        let _ = writeln!(
-            std::io::stdout(),
-            "fulcrum serve: ready: world {} (hash {:016x}){}, {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
+        let about = format!(
+            "world {} (hash {:016x}){}, {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
             w.name,
             d.world_hash,
             if model == fulcrum_shared::config::EmpowermentModel::Deterministic {
@@ -101,6 +101,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
             set_name(w, &set),
             a.namespace
         );
+        let _ = writeln!(std::io::stdout(), "{}", ChildLine::ServiceReady { about });
         let _ = std::io::stdout().flush();
     })?;
     // The reader of our output may be gone (a supervisor that only waited for "ready"):

@@ -114,7 +114,7 @@ impl Serve {
         let serve = Serve(child);
         loop {
             match rx.recv_timeout(std::time::Duration::from_secs(120)) {
-                Ok(l) if l.contains("ready") => return serve,
+                Ok(l) if crate::util::is_ready(&l) => return serve,
                 Ok(_) => {}
                 Err(_) => panic!("fulcrum serve {world} did not become ready"),
             }

@@ -13,7 +13,7 @@ use fulcrum_shared::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
 use fulcrum_shared::{load_world, ObjectSet, State, World};
 use rand::{Rng, SeedableRng};
 
-use crate::util::{fulcrum, namespace};
+use crate::util::{fulcrum, is_ready, namespace};
 
 /// A running `fulcrum serve`, stopped (SIGINT, then SIGKILL) when dropped.
 struct Serve {
@@ -41,7 +41,7 @@ impl Serve {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             match rx.recv_timeout(left) {
-                Ok(l) if l.contains("ready") => return Serve { child, ready: l },
+                Ok(l) if is_ready(&l) => return Serve { child, ready: l },
                 Ok(_) => {}
                 Err(_) => {
                     let _ = child.kill();
@@ -440,7 +440,7 @@ fn a_service_whose_output_reader_left_still_stops_cleanly() {
         .unwrap();
     let mut lines = BufReader::new(child.stdout.take().unwrap()).lines();
     let ready = lines.next().unwrap().unwrap();
-    assert!(ready.contains("ready"), "{ready}");
+    assert!(is_ready(&ready), "{ready}");
     drop(lines);
     let ok = Command::new("kill")
         .args(["-INT", &child.id().to_string()])

@@ -22,6 +22,7 @@ use fulcrum_bridge::zenoh::handlers::FifoChannel;
 use fulcrum_bridge::zenoh::qos::{CongestionControl, Priority};
 use fulcrum_bridge::zenoh::Wait;
 use fulcrum_empowerment::{Engine, Limits};
+use fulcrum_shared::lines::ChildLine;
 use fulcrum_shared::load_world;
 use fulcrum_shared::msg::{kind, EmpRequest, EmpResponse};
 use fulcrum_shared::traj::ChunkHeader;
@@ -115,7 +116,12 @@ pub fn peer(listen: &str) -> Result<()> {
             serve_lookups(&lookups, &ns, &world, &stop, &stats, &|_| Ok(()));
         })
     };
-    println!("fulcrum remote peer: ready on {endpoint}");
+    println!(
+        "{}",
+        ChildLine::PeerReady {
+            endpoint: endpoint.to_string(),
+        }
+    );
     let _ = std::io::stdout().flush();
     while !STOP.load(Ordering::Relaxed) {
         std::thread::sleep(Duration::from_millis(50));
@@ -179,7 +185,7 @@ pub(super) fn run(addr: Option<&str>, quick: bool, figs: &mut Vec<Figure>) -> Re
             let ready = BufReader::new(out)
                 .lines()
                 .map_while(|l| l.ok())
-                .any(|l| l.contains("ready"));
+                .any(|l| ChildLine::parse(&l).is_some_and(|c| c.is_ready()));
             ensure!(ready, "the remote peer stopped before it was ready");
             (Some(peer), a, "peer on 127.0.0.1 (one machine)".to_string())
         }
