@@ -6,6 +6,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use fulcrum_run::child::ChildRequest;
 use fulcrum_run::plan::TrainRequest;
 use fulcrum_run::BadRequest;
+use fulcrum_learner::preset::Preset;
 use fulcrum_shared::config::ChannelTool;
 use fulcrum_shared::intrinsic::Intrinsic;
 
@@ -866,9 +867,13 @@ impl TrainArgs {
             epochs: a.epochs,
             minibatches: a.minibatches,
             ppo_preset: if a.paper {
-                Some("rllib".to_string())
+                Some(Preset::Rllib)
             } else {
-                a.ppo_preset.clone()
+                a.ppo_preset
+                    .as_deref()
+                    .map(str::parse)
+                    .transpose()
+                    .map_err(BadRequest)?
             },
             remote: a.listen.is_some(),
             stall_timeout: a.stall_timeout,

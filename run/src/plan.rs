@@ -84,8 +84,8 @@ pub struct TrainRequest {
     pub epochs: Option<usize>,
     /// Minibatches per epoch.
     pub minibatches: Option<usize>,
-    /// The PPO preset's name.
-    pub ppo_preset: Option<String>,
+    /// The PPO preset.
+    pub ppo_preset: Option<Preset>,
     /// Actors on other hosts join through a bridge.
     pub remote: bool,
     /// Seconds without chunks from a remote host before the learner gives up on it.
@@ -254,12 +254,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
     let form = a.intrinsic.unwrap_or_default();
     let mode = a.horizon_mode.unwrap_or_default();
     let fixed = mode == HorizonMode::Fixed;
-    let preset: Preset = a
-        .ppo_preset
-        .as_deref()
-        .unwrap_or("fulcrum")
-        .parse()
-        .map_err(BadRequest)?;
+    let preset = a.ppo_preset.unwrap_or(Preset::Fulcrum);
     let n = cores();
     let actors = a.actors.unwrap_or(n.saturating_sub(1).max(1));
     let seed = a.seed.unwrap_or(1);
