@@ -3,10 +3,10 @@
 use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use fulcrum_learner::preset::Preset;
 use fulcrum_run::child::ChildRequest;
 use fulcrum_run::plan::TrainRequest;
 use fulcrum_run::BadRequest;
-use fulcrum_learner::preset::Preset;
 use fulcrum_shared::config::ChannelTool;
 use fulcrum_shared::intrinsic::Intrinsic;
 
@@ -111,7 +111,12 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct ServeArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
-    pub world: String,
+    #[arg(required_unless_present = "run")]
+    pub world: Option<String>,
+    /// The service of a training run: world, tool, objects, horizons, the table's form,
+    /// model and clients all from RUN/config.toml (what `fulcrum train` starts).
+    #[arg(long, value_name = "RUN", conflicts_with_all = ["world", "tool", "objects", "horizon_unequipped", "horizon_equipped", "horizon_sum", "model", "max_clients"])]
+    pub run: Option<PathBuf>,
     /// Tool of the lookup table: a tool name, `all`, or `auto` (tool selection by the
     /// matrix). Default: the world's [empowerment] tool.
     #[arg(long)]

@@ -33,7 +33,7 @@ use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
 use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::config::{EmpowermentModel, RunConfig};
+use fulcrum_shared::config::RunConfig;
 
 use crate::error::bad;
 use crate::process::{
@@ -210,35 +210,16 @@ impl Supervisor {
         send_on_exit(child, self.exits_tx.clone(), who);
     }
 
-    /// The empowerment service's command.
+    /// The empowerment service's command: it reads what to serve from the run's
+    /// `config.toml`.
     fn service_command(&self) -> Command {
-        let mut args = vec![
+        let args = vec![
             "serve".to_string(),
-            self.cfg.world.clone(),
+            "--run".into(),
+            self.paths.dir.display().to_string(),
             "--namespace".into(),
             self.opts.namespace.clone(),
-            "--horizon-unequipped".into(),
-            self.cfg.horizon_unequipped.to_string(),
-            "--horizon-equipped".into(),
-            self.cfg.horizon_equipped.to_string(),
-            "--max-clients".into(),
-            self.cfg.service_clients().to_string(),
         ];
-        if let Some(t) = self.cfg.tool.as_request() {
-            args.extend(["--tool".into(), t.to_string()]);
-        }
-        if !self.cfg.objects.is_empty() {
-            args.extend(["--objects".into(), self.cfg.objects.clone()]);
-        }
-        if self.cfg.form().horizon_sum() {
-            args.push("--horizon-sum".into());
-        }
-        if self.cfg.empowerment_model != EmpowermentModel::Exact {
-            args.extend([
-                "--model".into(),
-                self.cfg.empowerment_model.name().to_string(),
-            ]);
-        }
         let mut cmd = self.command(&args, cores());
         // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
         unsafe {

@@ -11,29 +11,81 @@ use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
 use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
-use fulcrum_run::bad;
+use fulcrum_learner::paths::RunPaths;
+use fulcrum_run::{bad, BadRequest};
+use fulcrum_shared::config::{EmpowermentModel, RunConfig};
 use fulcrum_shared::load_world as world;
+use fulcrum_shared::World;
 
 /// The most clients `--max-clients` may ask for (about 1.2 GiB of shared memory).
 const MAX_SERVE_CLIENTS: usize = 1024;
 
+/// What the service serves: from the flags, or from a run's `config.toml`.
+struct Served {
+    world: World,
+    tool: Option<String>,
+    objects: Option<String>,
+    horizon_unequipped: Option<u32>,
+    horizon_equipped: Option<u32>,
+    horizon_sum: bool,
+    model: EmpowermentModel,
+    max_clients: usize,
+}
+
+impl Served {
+    fn from_args(a: &ServeArgs) -> Result<Served> {
+        if let Some(dir) = &a.run {
+            let paths = RunPaths { dir: dir.clone() };
+            let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+            let w = world(&cfg.world)?;
+            if format!("{:016x}", w.content_hash()) != cfg.world_hash {
+                return bad(format!(
+                    "the world '{}' differs from the run's (hash {})",
+                    cfg.world, cfg.world_hash
+                ));
+            }
+            return Ok(Served {
+                world: w,
+                tool: cfg.tool.as_request().map(str::to_string),
+                objects: (!cfg.objects.is_empty()).then(|| cfg.objects.clone()),
+                horizon_unequipped: Some(cfg.horizon_unequipped),
+                horizon_equipped: Some(cfg.horizon_equipped),
+                horizon_sum: cfg.form().horizon_sum(),
+                model: cfg.empowerment_model,
+                max_clients: cfg.service_clients(),
+            });
+        }
+        let spec = a.world.as_deref().unwrap_or_default();
+        Ok(Served {
+            world: world(spec)?,
+            tool: a.tool.clone(),
+            objects: a.objects.clone(),
+            horizon_unequipped: a.horizon_unequipped,
+            horizon_equipped: a.horizon_equipped,
+            horizon_sum: a.horizon_sum,
+            model: a.model.parse().map_err(BadRequest)?,
+            max_clients: a.max_clients,
+        })
+    }
+}
+
 /// Run the service until SIGINT or SIGTERM.
-pub fn run(a: &ServeArgs) -> Result<()> {
-    if !msg::valid_namespace(&a.namespace) {
+pub fn run(args: &ServeArgs) -> Result<()> {
+    if !msg::valid_namespace(&args.namespace) {
         return bad(format!(
             "--namespace '{}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'",
-            a.namespace
+            args.namespace
         ));
     }
+    let a = Served::from_args(args)?;
     if !(1..=MAX_SERVE_CLIENTS).contains(&a.max_clients) {
         return bad(format!(
             "--max-clients {} must be 1 to {MAX_SERVE_CLIENTS}",
             a.max_clients
         ));
     }
-    let world_itself = world(&a.world)?;
-    let model: fulcrum_shared::config::EmpowermentModel =
-        a.model.parse().map_err(fulcrum_run::BadRequest)?;
+    let world_itself = a.world;
+    let model = a.model;
     // The deterministic twin keeps the file's content hash, so the actors of the
     // world itself are answered.
     let w = fulcrum_run::plan::model_world(&world_itself, model);
@@ -73,12 +125,12 @@ pub fn run(a: &ServeArgs) -> Result<()> {
     }
     let cfg = ServeConfig {
         horizon_sum: a.horizon_sum,
-        namespace: a.namespace.clone(),
+        namespace: args.namespace.clone(),
         tool,
         objects: set.clone(),
         horizon_unequipped: hu,
         horizon_equipped: he,
-        cache_bytes: a.cache_mib << 20,
+        cache_bytes: args.cache_mib << 20,
         spin: Duration::from_micros(100),
         max_clients: a.max_clients,
     };
@@ -88,7 +140,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
             "world {} (hash {:016x}){}, {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
             w.name,
             d.world_hash,
-            if model == fulcrum_shared::config::EmpowermentModel::Deterministic {
+            if model == EmpowermentModel::Deterministic {
                 " computed as if deterministic"
             } else {
                 ""
@@ -99,7 +151,7 @@ pub fn run(a: &ServeArgs) -> Result<()> {
                 ToolSel::Tool(j) => w.tools[j].name.clone(),
             },
             set_name(w, &set),
-            a.namespace
+            args.namespace
         );
         let _ = writeln!(std::io::stdout(), "{}", ChildLine::ServiceReady { about });
         let _ = std::io::stdout().flush();

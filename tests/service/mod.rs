@@ -23,8 +23,16 @@ struct Serve {
 
 impl Serve {
     fn start(world: &str, ns: &str, extra: &[&str]) -> Serve {
+        Serve::start_with(&[world], ns, extra)
+    }
+
+    /// `fulcrum serve WHAT --namespace NS EXTRA` (`WHAT`: a world, or `--run DIR`).
+    fn start_with(what: &[&str], ns: &str, extra: &[&str]) -> Serve {
+        let world = what.join(" ");
         let mut child = fulcrum()
-            .args(["serve", world, "--namespace", ns])
+            .arg("serve")
+            .args(what)
+            .args(["--namespace", ns])
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
@@ -550,4 +558,62 @@ fn a_service_takes_as_many_clients_as_it_was_made_for() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("--max-clients 0 must be 1 to 1024"), "{err}");
+}
+
+/// `serve --run DIR` (what `fulcrum train` starts) serves what the run's config.toml
+/// names: here a horizon-potential run of the room with the axe for the tree at
+/// horizons 4 and 2, so the table is Phi = E^1 + ... + E^4 (without the axe) or up to
+/// E^2 (with it), as the engine computes it; flags of their own are refused beside it.
+#[test]
+fn serve_run_reads_everything_from_the_runs_config() {
+    let dir = crate::util::TempDir::fresh("serve-run");
+    let d = dir.to_str().unwrap();
+    let out = fulcrum()
+        .args([
+            "train",
+            "room",
+            "--actors",
+            "1",
+            "--steps",
+            "1024",
+            "--intrinsic",
+            "horizon-potential",
+            "--horizon-unequipped",
+            "4",
+            "--horizon-equipped",
+            "2",
+            "--out",
+            d,
+        ])
+        .stdin(Stdio::null())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let ns = namespace("serve-run");
+    let serve = Serve::start_with(&["--run", d], &ns, &[]);
+    assert!(
+        serve.ready.contains("h = 4 unequipped / 2 equipped"),
+        "{}",
+        serve.ready
+    );
+    let w = load_world("room").unwrap();
+    let e = Engine::new(&w, Limits::default()).unwrap();
+    let tree = ObjectSet::Objects(vec![0]);
+    let want = e
+        .lookup_values(ToolSel::Tool(0), &tree, 4, 2, true)
+        .unwrap();
+    let mut c = Client::connect(&ns, &w, Duration::from_secs(30)).unwrap();
+    let got = c.values(Ask::Lookup, e.space.states(), 256).unwrap();
+    assert_eq!(got.values, want);
+    assert!(want.iter().any(|&v| v > 1.0), "a sum of several horizons");
+    drop(serve);
+    let refused = fulcrum()
+        .args(["serve", "--run", d, "--tool", "axe"])
+        .output()
+        .unwrap();
+    assert_eq!(refused.status.code(), Some(2));
 }
