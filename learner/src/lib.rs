@@ -41,6 +41,8 @@ pub mod metrics;
 pub mod net;
 /// The files of a run directory.
 pub mod paths;
+/// The learner's shared-memory ports: chunks in, weights out.
+mod ports;
 /// The PPO loss and gradient clipping on candle tensors.
 pub mod ppo;
 /// Named sets of PPO settings (fulcrum, CleanRL, RLlib).
