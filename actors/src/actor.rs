@@ -449,7 +449,13 @@ impl<'a> Actor<'a> {
             return Ok(false);
         }
         self.rewards(sample.payload_mut(), &mut h, carry);
-        crate::fault::corrupt(self.id, self.seq, &self.layout, sample.payload_mut());
+        crate::fault::corrupt(
+            self.id.index,
+            self.id.incarnation,
+            self.seq,
+            &self.layout,
+            sample.payload_mut(),
+        );
         *sample.user_header_mut() = h;
         match sample.send() {
             Ok(_) => {}

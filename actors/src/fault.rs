@@ -8,8 +8,6 @@ use std::sync::OnceLock;
 
 use fulcrum_shared::traj::{ChunkLayout, Section};
 
-use crate::actor::ActorId;
-
 /// The environment variable of the hook.
 pub const FAULT_BAD_CHUNK_ENV: &str = "FULCRUM_FAULT_BAD_CHUNK";
 
@@ -22,10 +20,17 @@ fn target() -> Option<(u32, u64)> {
     })
 }
 
-/// Corrupt the chunk `seq` of actor `id` in `buf` if the hook asks for it.
-pub(crate) fn corrupt(id: ActorId, seq: u64, layout: &ChunkLayout, buf: &mut [u8]) {
-    if id.incarnation == 0 && target() == Some((id.index, seq)) {
+/// Corrupt the chunk `seq` of actor `index` in `buf` if the hook asks for it (in the
+/// actor's first incarnation only: a restarted actor sends good chunks).
+pub(crate) fn corrupt(
+    index: u32,
+    incarnation: u32,
+    seq: u64,
+    layout: &ChunkLayout,
+    buf: &mut [u8],
+) {
+    if incarnation == 0 && target() == Some((index, seq)) {
         buf[layout.range(Section::Actions).start] = u8::MAX;
-        tracing::warn!(actor = id.index, seq, "fault injected: a bad action byte");
+        tracing::warn!(actor = index, seq, "fault injected: a bad action byte");
     }
 }

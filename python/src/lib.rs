@@ -17,6 +17,7 @@
 
 use pyo3::prelude::*;
 
+mod bufs;
 mod client;
 mod emp;
 mod errors;

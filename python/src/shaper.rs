@@ -23,8 +23,8 @@ use fulcrum_shared::{Episode, MAX_HORIZON};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 
+use crate::bufs::{checked, Views};
 use crate::errors::{value_error, IntoPy};
-use crate::venv::{checked, Views};
 
 /// What `EmpowermentReward` asks for; `None` takes the world's `[empowerment]` value.
 #[derive(Debug)]

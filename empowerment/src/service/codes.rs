@@ -4,7 +4,7 @@
 use fulcrum_shared::msg::{self, Describe, AGENT_BIT, TOOL_ALL};
 use fulcrum_shared::{ObjectSet, World};
 
-use super::tables::ServeConfig;
+use super::config::ServeConfig;
 use crate::engine::{Engine, ToolSel};
 
 /// Object mask of a set (bit per object; [`AGENT_BIT`] for the agent).

@@ -33,18 +33,22 @@
 //!   [`clean_dead_nodes`];
 //! - `error`: [`ServiceError`] and [`ClientError`].
 
+mod answer;
 mod client;
 mod codes;
+mod config;
 mod error;
 mod ports;
 mod server;
 mod signal;
 mod tables;
 
+pub use answer::Answer;
 pub use client::{Ask, Batch, Client};
 pub use codes::{describe, mask_set, object_mask};
+pub use config::ServeConfig;
 pub use error::{ClientError, ServiceError};
 pub use ports::{clean_dead_nodes, quiet_ipc_logs};
-pub use server::{serve, serve_with, Answer, ServeExit, ServeStats};
+pub use server::{serve, serve_with, ServeExit, ServeStats};
 pub use signal::{request_stop, stop_requested};
-pub use tables::{ServeConfig, Tables};
+pub use tables::Tables;

@@ -17,19 +17,11 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::waitset::WaitSetRunResult;
 
+use super::answer::Answer;
 use super::error::ServiceError;
 use super::ports::{clean_dead_nodes, event_service, rr_service, server_node, Rr};
 use super::signal::{chain_termination_signals, stop_signal};
 use super::tables::Tables;
-
-/// What answers a service's requests: its own [`Tables`], or a bridge that asks the
-/// service of another host (feature `multihost`).
-pub trait Answer {
-    /// The DESCRIBE answer.
-    fn describe(&self) -> &Describe;
-    /// Answer one request into `out` (all-zero on entry). Never panics on input.
-    fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse);
-}
 
 /// How a service run ended.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -2,41 +2,16 @@
 //! the bounded cache of QUERY results and the VISIT counts.
 
 use std::collections::VecDeque;
-use std::time::Duration;
 
 use fulcrum_shared::msg::TOOL_ALL;
 use fulcrum_shared::msg::{item, kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH};
 use fulcrum_shared::{ObjectSet, State, MAX_HORIZON};
 
+use super::answer::Answer;
 use super::codes::{describe, mask_set};
+use super::config::ServeConfig;
 use super::error::ServiceError;
-use super::server::Answer;
 use crate::engine::{Engine, Method, ToolSel};
-
-/// What a service computes for LOOKUP.
-#[derive(Debug, Clone)]
-pub struct ServeConfig {
-    /// Namespace: `fulcrum/<namespace>/empowerment`.
-    pub namespace: String,
-    /// Tool whose actions drive the channel.
-    pub tool: ToolSel,
-    /// Objects of interest.
-    pub objects: ObjectSet,
-    /// Horizon where the tool is not held.
-    pub horizon_unequipped: u32,
-    /// Horizon where it is held.
-    pub horizon_equipped: u32,
-    /// LOOKUP answers Phi(s) = sum over h = 1..H of E^h(s), H the larger horizon, in every
-    /// state (the potential of `train --intrinsic horizon-potential`) instead of E.
-    pub horizon_sum: bool,
-    /// Bytes the QUERY cache may hold.
-    pub cache_bytes: usize,
-    /// How long to poll for the next request before blocking.
-    pub spin: Duration,
-    /// Clients the service takes at once ([`fulcrum_shared::msg::MAX_CLIENTS`] by
-    /// default; a training run's, its actors and spares).
-    pub max_clients: usize,
-}
 
 /// A QUERY's key in the cache: tool code, object mask, horizon.
 type QueryKey = (i32, u32, u32);

@@ -320,7 +320,8 @@ fn run_one(a: &ExperimentRequest) -> Result<Done> {
     );
     let failed = schedule::schedule(&spec, &jobs, &todo, &cpus, parallel, share)?;
 
-    let (markdown, summary) = summary::aggregate(&spec, &arms, &jobs, a.threshold, a.smooth, &dir)?;
+    let summary = summary::aggregate(&spec, &arms, &jobs, a.threshold, a.smooth)?;
+    let markdown = report::write(&summary, &dir)?;
     eprintln!(
         "summary: {}\nplots: {} {}",
         dir.join("summary.md").display(),

@@ -8,6 +8,18 @@ use super::summary::{ArmSummary, MeanStd, Summary};
 use super::FINAL_FRACTION;
 use crate::stats::Welch;
 
+/// Writes `summary.json`, `summary.md` and the plots into `dir`; the Markdown.
+pub(super) fn write(summary: &Summary, dir: &Path) -> Result<String> {
+    let md = markdown(summary);
+    let json = serde_json::to_string_pretty(summary).context("cannot encode summary.json")?;
+    fulcrum_shared::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
+        .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
+    fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), md.as_bytes())
+        .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
+    draw(summary, dir)?;
+    Ok(md)
+}
+
 pub(super) fn steps_text(x: f64) -> String {
     if x >= 1e6 {
         format!("{:.2}M", x / 1e6)

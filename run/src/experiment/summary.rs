@@ -10,7 +10,6 @@ use fulcrum_learner::trap::TrapDetector;
 use fulcrum_shared::config::RunConfig;
 use serde::Serialize;
 
-use super::report::{draw, markdown};
 use super::{state, Arm, Job, Spec, State, FINAL_FRACTION, GRID};
 use crate::stats::{self, LogRank, Point, Welch};
 
@@ -159,15 +158,14 @@ struct Samples {
     solved: (usize, usize),
 }
 
-/// Reads the finished runs of `jobs`, writes summary.{md,json} and the plots.
+/// Reads the finished runs of `jobs` into the summary (`report::write` writes it).
 pub(super) fn aggregate(
     spec: &Spec,
     arms: &[Arm],
     jobs: &[Job],
     threshold: f64,
     smooth: usize,
-    dir: &Path,
-) -> Result<(String, Summary)> {
+) -> Result<Summary> {
     let g = stats::grid(spec.steps as f64, GRID);
     let mut out = Vec::new();
     let mut samples = Vec::new();
@@ -192,7 +190,7 @@ pub(super) fn aggregate(
         .skip(1)
         .map(|(arm, s)| compare(&arm.name, s, &arms[0].name, &samples[0]))
         .collect();
-    let summary = Summary {
+    Ok(Summary {
         world: spec.world.clone(),
         steps: spec.steps,
         threshold,
@@ -200,15 +198,7 @@ pub(super) fn aggregate(
         grid: g,
         arms: out,
         comparisons,
-    };
-    let markdown = markdown(&summary);
-    let json = serde_json::to_string_pretty(&summary).context("cannot encode summary.json")?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
-        .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
-        .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
-    draw(&summary, dir)?;
-    Ok((markdown, summary))
+    })
 }
 
 /// One finished seed's metrics, smoothed and put on the grid `g`.
