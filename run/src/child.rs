@@ -21,7 +21,7 @@ use fulcrum_shared::lines::{ChildLine, LearnerProgress};
 use fulcrum_shared::load_world;
 
 /// What the supervisor tells a child process.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ChildRequest {
     /// The run directory.
     pub run: PathBuf,

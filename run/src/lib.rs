@@ -24,7 +24,9 @@
 //! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
 //! | [`stats`] | curves over seeds, censored times to solve, tests |
 //! | [`error`] | bad requests and interruptions (the binary's exit codes 2 and 130) |
+//! | [`argv`] | the command lines of fulcrum's own child processes, one typed builder each |
 
+pub mod argv;
 pub mod child;
 pub mod curve;
 pub mod error;

@@ -35,6 +35,8 @@ use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_shared::config::RunConfig;
 
+use crate::argv::{self, ChildKind};
+use crate::child::ChildRequest;
 use crate::error::bad;
 use crate::process::{
     cores, describe_status, hostname, send_on_exit, signal, spawn_until_ready, stop_children,
@@ -192,17 +194,17 @@ impl Supervisor {
         c
     }
 
-    /// The arguments every hidden child process gets.
-    fn child_args(&self, what: &str) -> Vec<String> {
-        vec![
-            what.into(),
-            "--run".into(),
-            self.paths.dir.display().to_string(),
-            "--namespace".into(),
-            self.opts.namespace.clone(),
-            "--parent".into(),
-            std::process::id().to_string(),
-        ]
+    /// What a hidden child process of this run is asked for.
+    fn child_request(&self, index: u32, incarnation: u32) -> ChildRequest {
+        ChildRequest {
+            run: self.paths.dir.clone(),
+            namespace: self.opts.namespace.clone(),
+            parent: std::process::id(),
+            index,
+            incarnation,
+            stop_after_updates: None,
+            run_tag: None,
+        }
     }
 
     /// Tells the loop when `child` exits.
@@ -213,13 +215,7 @@ impl Supervisor {
     /// The empowerment service's command: it reads what to serve from the run's
     /// `config.toml`.
     fn service_command(&self) -> Command {
-        let args = vec![
-            "serve".to_string(),
-            "--run".into(),
-            self.paths.dir.display().to_string(),
-            "--namespace".into(),
-            self.opts.namespace.clone(),
-        ];
+        let args = argv::serve_run(&self.paths.dir, &self.opts.namespace);
         let mut cmd = self.command(&args, cores());
         // SAFETY: prctl is async-signal-safe; nothing else runs between fork and exec.
         unsafe {
@@ -254,22 +250,16 @@ impl Supervisor {
         let Some(addr) = self.opts.listen.clone() else {
             return Ok(());
         };
-        let mut args = vec![
-            "bridge".to_string(),
-            "--listen".into(),
-            addr.clone(),
-            "--run".into(),
-            self.paths.dir.display().to_string(),
-            "--namespace".into(),
-            self.opts.namespace.clone(),
-            "--parent".into(),
-            std::process::id().to_string(),
-            "--session-timeout".into(),
-            self.opts.session_timeout.to_string(),
-        ];
-        if let Some(c) = &self.opts.zenoh_config {
-            args.extend(["--zenoh-config".into(), c.display().to_string()]);
-        }
+        let args = argv::bridge_listen(&argv::BridgeListen {
+            addr: addr.clone(),
+            run: self.paths.dir.clone(),
+            namespace: self.opts.namespace.clone(),
+            parent: std::process::id(),
+            zenoh: argv::Zenoh {
+                session_timeout: self.opts.session_timeout,
+                config: self.opts.zenoh_config.clone(),
+            },
+        });
         let cmd = self.command(&args, 1);
         let child = match spawn_until_ready(cmd, "the bridge", Some(BRIDGE_READY))? {
             Ready::Ready(child, (), _) => child,
@@ -305,10 +295,13 @@ impl Supervisor {
     }
 
     fn start_learner(&mut self) -> Result<()> {
-        let mut args = self.child_args("__learner");
-        if let Some(n) = self.opts.stop_after {
-            args.extend(["--stop-after-updates".into(), n.to_string()]);
-        }
+        let args = argv::child(
+            ChildKind::Learner,
+            &ChildRequest {
+                stop_after_updates: self.opts.stop_after,
+                ..self.child_request(0, 0)
+            },
+        );
         let mut cmd = self.command(&args, self.cfg.learner_threads);
         cmd.stdout(Stdio::piped());
         let mut child = cmd.spawn().context("cannot start the learner")?;
@@ -319,13 +312,7 @@ impl Supervisor {
     }
 
     fn start_actor(&mut self, i: usize, incarnation: u32) -> Result<()> {
-        let mut args = self.child_args("__actor");
-        args.extend([
-            "--index".into(),
-            i.to_string(),
-            "--incarnation".into(),
-            incarnation.to_string(),
-        ]);
+        let args = argv::child(ChildKind::Actor, &self.child_request(i as u32, incarnation));
         let child = self
             .command(&args, 1)
             .spawn()

@@ -5,6 +5,8 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
+#[cfg(test)]
+mod argv_tests;
 mod train;
 mod zenoh;
 pub use train::TrainArgs;

@@ -23,7 +23,9 @@ use anyhow::{Context, Result};
 
 use crate::cli::ActorHostArgs;
 use fulcrum_bridge::{actor_id, default_dir, parse_joined};
+use fulcrum_run::argv::{self, ChildKind};
 use fulcrum_run::bad;
+use fulcrum_run::child::ChildRequest;
 use fulcrum_run::process::{
     cores, hostname, install_signal_handlers, spawn_until, stop_children, Ready, STOP,
 };
@@ -52,30 +54,19 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     let name = a.name.clone().unwrap_or_else(hostname);
     let dir = a.dir.clone().unwrap_or_else(|| default_dir(&name));
     let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
-    let mut args: Vec<String> = vec![
-        "bridge".into(),
-        "--connect".into(),
-        a.connect.clone(),
-        "--run".into(),
-        dir.display().to_string(),
-        "--name".into(),
-        name.clone(),
-        "--give-up".into(),
-        a.give_up.to_string(),
-        "--session-timeout".into(),
-        a.zenoh.session_timeout.to_string(),
-        "--parent".into(),
-        std::process::id().to_string(),
-    ];
-    if let Some(w) = &a.world {
-        args.extend(["--world".into(), w.clone()]);
-    }
-    if let Some(r) = &a.run_id {
-        args.extend(["--run-id".into(), r.clone()]);
-    }
-    if let Some(c) = &a.zenoh.zenoh_config {
-        args.extend(["--zenoh-config".into(), c.display().to_string()]);
-    }
+    let args = argv::bridge_connect(&argv::BridgeConnect {
+        connect: a.connect.clone(),
+        run: dir.clone(),
+        name: name.clone(),
+        give_up: a.give_up,
+        parent: std::process::id(),
+        world: a.world.clone(),
+        run_id: a.run_id.clone(),
+        zenoh: argv::Zenoh {
+            session_timeout: a.zenoh.session_timeout,
+            config: a.zenoh.zenoh_config.clone(),
+        },
+    });
     eprintln!(
         "fulcrum actor-host: '{name}' joining the run at {} with {k} actors",
         a.connect
@@ -105,21 +96,18 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
     );
     let start = |j: usize, inc: u32| -> Result<Child> {
         Command::new(&exe)
-            .args([
-                "__actor".to_string(),
-                "--run".into(),
-                dir.display().to_string(),
-                "--namespace".into(),
-                joined.local_ns.clone(),
-                "--parent".into(),
-                std::process::id().to_string(),
-                "--index".into(),
-                actor_id(joined.host, j).to_string(),
-                "--incarnation".into(),
-                inc.to_string(),
-                "--run-tag".into(),
-                format!("{:016x}", joined.run_tag),
-            ])
+            .args(argv::child(
+                ChildKind::Actor,
+                &ChildRequest {
+                    run: dir.clone(),
+                    namespace: joined.local_ns.clone(),
+                    parent: std::process::id(),
+                    index: actor_id(joined.host, j),
+                    incarnation: inc,
+                    stop_after_updates: None,
+                    run_tag: Some(format!("{:016x}", joined.run_tag)),
+                },
+            ))
             .env("RAYON_NUM_THREADS", "1")
             .env("CANDLE_NUM_THREADS", "1")
             .stdin(Stdio::null())

@@ -173,27 +173,21 @@ fn state(dir: &Path, steps: u64) -> State {
     }
 }
 
-/// The `train` command line of a pair (after the executable and `train`).
+/// The `train` command line of a pair (after the executable).
 fn train_args(spec: &Spec, arm: &Arm, job: &Job, resume: bool) -> Vec<String> {
-    if resume {
-        return vec!["--resume".into(), job.dir.display().to_string()];
-    }
-    let mut v = vec![
-        spec.world.clone(),
-        "--seed".into(),
-        job.seed.to_string(),
-        "--steps".into(),
-        spec.steps.to_string(),
-        "--actors".into(),
-        spec.actors.to_string(),
-        "--envs-per-actor".into(),
-        spec.envs_per_actor.to_string(),
-        "--out".into(),
-        job.dir.display().to_string(),
-    ];
-    v.extend(arm.args.iter().cloned());
-    v.extend(spec.extra.iter().cloned());
-    v
+    crate::argv::train(&if resume {
+        crate::argv::TrainJob::Resume(job.dir.clone())
+    } else {
+        crate::argv::TrainJob::New {
+            world: spec.world.clone(),
+            seed: job.seed,
+            steps: spec.steps,
+            actors: spec.actors,
+            envs_per_actor: spec.envs_per_actor,
+            out: job.dir.clone(),
+            flags: [&arm.args[..], &spec.extra[..]].concat(),
+        }
+    })
 }
 
 /// Runs (or resumes) the experiment, then aggregates every finished run into

@@ -80,8 +80,7 @@ pub(super) fn schedule(
                 .with_context(|| format!("cannot open {}", job.log.display()))?;
             let args = train_args(spec, &spec.arms[job.arm], job, st == State::Partial);
             let mut cmd = Command::new(&exe);
-            cmd.arg("train")
-                .args(&args)
+            cmd.args(&args)
                 .stdin(Stdio::null())
                 .stdout(log.try_clone().context("cannot share the log file")?)
                 .stderr(log)

@@ -1,0 +1,216 @@
+//! The command lines of fulcrum's own child processes: one typed builder per
+//! subcommand, the one place outside the binary's `cli` module that spells its flags.
+//! The binary's tests parse what each builder makes with its clap types and compare
+//! the result with what was built from (`src/cli/argv_tests.rs`), so a renamed flag
+//! fails a test instead of a child.
+//!
+//! Each builder returns the arguments after the executable, the subcommand first.
+
+use std::path::{Path, PathBuf};
+
+use crate::child::ChildRequest;
+
+/// Which hidden child process.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ChildKind {
+    /// `__learner`.
+    Learner,
+    /// `__actor`.
+    Actor,
+}
+
+/// `__learner` / `__actor`: a child of a run, everything else from its run directory.
+pub fn child(kind: ChildKind, r: &ChildRequest) -> Vec<String> {
+    let mut v = vec![
+        match kind {
+            ChildKind::Learner => "__learner",
+            ChildKind::Actor => "__actor",
+        }
+        .to_string(),
+        "--run".into(),
+        r.run.display().to_string(),
+        "--namespace".into(),
+        r.namespace.clone(),
+        "--parent".into(),
+        r.parent.to_string(),
+    ];
+    if kind == ChildKind::Actor {
+        v.extend([
+            "--index".into(),
+            r.index.to_string(),
+            "--incarnation".into(),
+            r.incarnation.to_string(),
+        ]);
+    }
+    if let Some(n) = r.stop_after_updates {
+        v.extend(["--stop-after-updates".into(), n.to_string()]);
+    }
+    if let Some(t) = &r.run_tag {
+        v.extend(["--run-tag".into(), t.clone()]);
+    }
+    v
+}
+
+/// `serve --run DIR --namespace NS`: the service of a run, as its `config.toml` says.
+pub fn serve_run(run: &Path, namespace: &str) -> Vec<String> {
+    vec![
+        "serve".into(),
+        "--run".into(),
+        run.display().to_string(),
+        "--namespace".into(),
+        namespace.to_string(),
+    ]
+}
+
+/// The zenoh settings every bridge takes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Zenoh {
+    /// Seconds without a word before a session is closed.
+    pub session_timeout: f64,
+    /// A zenoh configuration file, if any.
+    pub config: Option<PathBuf>,
+}
+
+impl Zenoh {
+    fn extend(&self, v: &mut Vec<String>) {
+        v.extend(["--session-timeout".into(), self.session_timeout.to_string()]);
+        if let Some(c) = &self.config {
+            v.extend(["--zenoh-config".into(), c.display().to_string()]);
+        }
+    }
+}
+
+/// The learner host's bridge: listens for actor hosts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BridgeListen {
+    /// Where to listen.
+    pub addr: String,
+    /// The run directory.
+    pub run: PathBuf,
+    /// The run's namespace.
+    pub namespace: String,
+    /// The supervisor's pid.
+    pub parent: u32,
+    /// Zenoh's settings.
+    pub zenoh: Zenoh,
+}
+
+/// `bridge --listen ...`.
+pub fn bridge_listen(b: &BridgeListen) -> Vec<String> {
+    let mut v = vec![
+        "bridge".into(),
+        "--listen".into(),
+        b.addr.clone(),
+        "--run".into(),
+        b.run.display().to_string(),
+        "--namespace".into(),
+        b.namespace.clone(),
+        "--parent".into(),
+        b.parent.to_string(),
+    ];
+    b.zenoh.extend(&mut v);
+    v
+}
+
+/// An actor host's bridge: joins a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BridgeConnect {
+    /// The learner host's address.
+    pub connect: String,
+    /// This host's run directory.
+    pub run: PathBuf,
+    /// This host's name.
+    pub name: String,
+    /// Seconds to keep asking before giving up.
+    pub give_up: f64,
+    /// The actor host's pid.
+    pub parent: u32,
+    /// The world the host expects, if it names one.
+    pub world: Option<String>,
+    /// The run id the host expects, if it names one.
+    pub run_id: Option<String>,
+    /// Zenoh's settings.
+    pub zenoh: Zenoh,
+}
+
+/// `bridge --connect ...`.
+pub fn bridge_connect(b: &BridgeConnect) -> Vec<String> {
+    let mut v = vec![
+        "bridge".into(),
+        "--connect".into(),
+        b.connect.clone(),
+        "--run".into(),
+        b.run.display().to_string(),
+        "--name".into(),
+        b.name.clone(),
+        "--give-up".into(),
+        b.give_up.to_string(),
+        "--parent".into(),
+        b.parent.to_string(),
+    ];
+    if let Some(w) = &b.world {
+        v.extend(["--world".into(), w.clone()]);
+    }
+    if let Some(r) = &b.run_id {
+        v.extend(["--run-id".into(), r.clone()]);
+    }
+    b.zenoh.extend(&mut v);
+    v
+}
+
+/// One run of an experiment, as `fulcrum train` takes it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TrainJob {
+    /// Continue the run in this directory.
+    Resume(PathBuf),
+    /// A new run.
+    New {
+        /// The world.
+        world: String,
+        /// Its seed.
+        seed: u64,
+        /// Env steps.
+        steps: u64,
+        /// Actor processes.
+        actors: usize,
+        /// Worlds per actor.
+        envs_per_actor: usize,
+        /// The run directory.
+        out: PathBuf,
+        /// The arm's own `train` flags, and the experiment's, as given.
+        flags: Vec<String>,
+    },
+}
+
+/// `train ...`.
+pub fn train(job: &TrainJob) -> Vec<String> {
+    match job {
+        TrainJob::Resume(dir) => vec!["train".into(), "--resume".into(), dir.display().to_string()],
+        TrainJob::New {
+            world,
+            seed,
+            steps,
+            actors,
+            envs_per_actor,
+            out,
+            flags,
+        } => {
+            let mut v = vec![
+                "train".into(),
+                world.clone(),
+                "--seed".into(),
+                seed.to_string(),
+                "--steps".into(),
+                steps.to_string(),
+                "--actors".into(),
+                actors.to_string(),
+                "--envs-per-actor".into(),
+                envs_per_actor.to_string(),
+                "--out".into(),
+                out.display().to_string(),
+            ];
+            v.extend(flags.iter().cloned());
+            v
+        }
+    }
+}

@@ -1,0 +1,157 @@
+//! Every command line `fulcrum_run::argv` builds, parsed by this binary's own clap types:
+//! what the child reads is what the parent meant.
+
+use std::path::PathBuf;
+
+use clap::Parser;
+use fulcrum_run::argv::{self, BridgeConnect, BridgeListen, ChildKind, TrainJob, Zenoh};
+use fulcrum_run::child::ChildRequest;
+
+use super::{Cli, Command};
+
+fn parse(args: Vec<String>) -> Command {
+    let argv = std::iter::once("fulcrum".to_string()).chain(args);
+    match Cli::try_parse_from(argv) {
+        Ok(cli) => cli.command,
+        Err(e) => panic!("the built command line does not parse: {e}"),
+    }
+}
+
+fn request() -> ChildRequest {
+    ChildRequest {
+        run: PathBuf::from("/runs/a b"),
+        namespace: "t1f".into(),
+        parent: 4242,
+        index: 3,
+        incarnation: 2,
+        stop_after_updates: None,
+        run_tag: None,
+    }
+}
+
+#[test]
+fn learner_and_actor_lines_give_back_their_requests() {
+    let learner = ChildRequest {
+        index: 0,
+        incarnation: 0,
+        stop_after_updates: Some(7),
+        ..request()
+    };
+    match parse(argv::child(ChildKind::Learner, &learner)) {
+        Command::Learner(c) => assert_eq!(c.request(), learner),
+        other => panic!("{other:?}"),
+    }
+    let actor = ChildRequest {
+        run_tag: Some("00abcdef01234567".into()),
+        ..request()
+    };
+    match parse(argv::child(ChildKind::Actor, &actor)) {
+        Command::Actor(c) => assert_eq!(c.request(), actor),
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn the_service_of_a_run_reads_its_directory() {
+    match parse(argv::serve_run(&PathBuf::from("/runs/x"), "ns.1")) {
+        Command::Serve(s) => {
+            assert_eq!(s.run, Some(PathBuf::from("/runs/x")));
+            assert_eq!(s.namespace, "ns.1");
+            assert_eq!(s.world, None);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn both_bridges_get_every_setting() {
+    let zenoh = Zenoh {
+        session_timeout: 12.5,
+        config: Some(PathBuf::from("/etc/z.json5")),
+    };
+    let listen = BridgeListen {
+        addr: "0.0.0.0:7447".into(),
+        run: PathBuf::from("/runs/r"),
+        namespace: "t9".into(),
+        parent: 77,
+        zenoh: zenoh.clone(),
+    };
+    match parse(argv::bridge_listen(&listen)) {
+        Command::Bridge(b) => {
+            assert_eq!(b.listen.as_deref(), Some("0.0.0.0:7447"));
+            assert_eq!(b.run, listen.run);
+            assert_eq!(b.namespace.as_deref(), Some("t9"));
+            assert_eq!(b.parent, Some(77));
+            assert_eq!(b.zenoh.session_timeout, 12.5);
+            assert_eq!(b.zenoh.zenoh_config, zenoh.config);
+        }
+        other => panic!("{other:?}"),
+    }
+    let connect = BridgeConnect {
+        connect: "10.0.0.1:7447".into(),
+        run: PathBuf::from("/home/h/run"),
+        name: "hostb".into(),
+        give_up: 30.0,
+        parent: 88,
+        world: Some("exp2".into()),
+        run_id: Some("exp2-20261203-1".into()),
+        zenoh: Zenoh {
+            session_timeout: 5.0,
+            config: None,
+        },
+    };
+    match parse(argv::bridge_connect(&connect)) {
+        Command::Bridge(b) => {
+            assert_eq!(b.connect.as_deref(), Some("10.0.0.1:7447"));
+            assert_eq!(b.run, connect.run);
+            assert_eq!(b.name.as_deref(), Some("hostb"));
+            assert_eq!(b.give_up, 30.0);
+            assert_eq!(b.parent, Some(88));
+            assert_eq!(b.world.as_deref(), Some("exp2"));
+            assert_eq!(b.run_id.as_deref(), Some("exp2-20261203-1"));
+            assert_eq!(b.zenoh.session_timeout, 5.0);
+            assert_eq!(b.zenoh.zenoh_config, None);
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn an_experiments_runs_parse_as_train_requests() {
+    let job = TrainJob::New {
+        world: "exp1-tree-slip".into(),
+        seed: 9,
+        steps: 499_712,
+        actors: 1,
+        envs_per_actor: 8,
+        out: PathBuf::from("/e/runs/additive/seed-9"),
+        flags: vec![
+            "--intrinsic".into(),
+            "horizon-potential".into(),
+            "--empowerment-model".into(),
+            "deterministic".into(),
+        ],
+    };
+    match parse(argv::train(&job)) {
+        Command::Train(t) => {
+            let r = t.request().unwrap();
+            assert_eq!(r.world.as_deref(), Some("exp1-tree-slip"));
+            assert_eq!((r.seed, r.steps), (Some(9), Some(499_712)));
+            assert_eq!((r.actors, r.envs_per_actor), (Some(1), Some(8)));
+            assert_eq!(r.out, Some(PathBuf::from("/e/runs/additive/seed-9")));
+            assert_eq!(
+                r.intrinsic,
+                Some(fulcrum_shared::intrinsic::Intrinsic::HorizonPotential)
+            );
+            assert_eq!(
+                r.empowerment_model,
+                Some(fulcrum_shared::config::EmpowermentModel::Deterministic)
+            );
+        }
+        other => panic!("{other:?}"),
+    }
+    match parse(argv::train(&TrainJob::Resume(PathBuf::from("/e/runs/x")))) {
+        Command::Train(t) => assert_eq!(t.resume, Some(PathBuf::from("/e/runs/x"))),
+        other => panic!("{other:?}"),
+    }
+}
