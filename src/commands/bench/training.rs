@@ -326,12 +326,14 @@ pub(super) fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<
 }
 
 /// Time to solve exp1-tree with train's defaults (horizon-potential shaping, masking
-/// on), five seeds: median wall seconds and env steps to a success rate of 0.9.
-/// A seed that does not get there within the budget counts at the budget.
+/// on) and one actor of 8 worlds (so that the batch, and with it the env steps to
+/// solve, is the same on every machine), five seeds: median wall seconds and env steps
+/// to a success rate of 0.9. A seed that does not get there within the budget counts at
+/// the budget.
 pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-solve-{}", std::process::id()));
     let budget = 499_712u64;
-    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let batch = 8 * 128u64;
     let steps = budget.div_ceil(batch) * batch;
     let (mut secs, mut env) = (Vec::new(), Vec::new());
     let mut solved = 0;
@@ -339,7 +341,8 @@ pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
         let seed = seed.to_string();
         let steps = steps.to_string();
         let t0 = Instant::now();
-        match solve_once(&["exp1-tree", "--seed", &seed, "--steps", &steps], &dir)? {
+        let args = ["exp1-tree", "--seed", &seed, "--steps", &steps, "--actors", "1"];
+        match solve_once(&args, &dir)? {
             Some((s, e)) => {
                 solved += 1;
                 secs.push(s);
@@ -358,7 +361,7 @@ pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
     let list =
         |v: &[f64], f: fn(f64) -> String| v.iter().map(|&x| f(x)).collect::<Vec<_>>().join(" ");
     let note = format!(
-        "(train exp1-tree defaults, seeds 1-5, {solved}/5 solved; sorted: {} s, {} steps; goal <= 10 s)",
+        "(train exp1-tree defaults, one actor, seeds 1-5, {solved}/5 solved; sorted: {} s, {} steps; goal <= 10 s)",
         list(&{ let mut v = secs.clone(); v.sort_by(f64::total_cmp); v }, |x| format!("{x:.1}")),
         list(&{ let mut v = env.clone(); v.sort_by(f64::total_cmp); v }, |x| format!("{:.0}k", x / 1e3)),
     );
