@@ -65,6 +65,9 @@ fn exit_code(e: &anyhow::Error) -> u8 {
                 Some(ClientError::WrongWorld { .. } | ClientError::Refused(_))
             )
     };
+    #[cfg(feature = "multihost")]
+    let bad_input =
+        |c: &(dyn std::error::Error + 'static)| bad_input(c) || c.is::<fulcrum_bridge::Refused>();
     if e.chain().any(bad_input) {
         2
     } else {

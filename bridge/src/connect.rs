@@ -7,12 +7,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use crate::error::refuse;
 use anyhow::{Context, Result};
 use fulcrum_empowerment::service;
-use fulcrum_run::bad;
-use fulcrum_run::process::STOP;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::msg;
+use fulcrum_shared::stop::STOP;
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
 use fulcrum_shared::IpcError;
 use fulcrum_shared::World;
@@ -51,7 +51,7 @@ pub fn connect(
     secret: &Secret,
 ) -> Result<()> {
     if !valid_host_name(name) {
-        return bad(format!(
+        return refuse(format!(
             "the host name '{name}' is not usable: use letters, digits, '-', '_' or '.' (at most 64)"
         ));
     }
@@ -152,7 +152,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         );
     }
     if let Some(id) = want.run_id.filter(|id| *id != hello.run_id) {
-        return bad(format!(
+        return refuse(format!(
             "the run at {endpoint} is '{}', not '{id}'",
             hello.run_id
         ));
@@ -160,7 +160,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
     if let Some(w) = want.world {
         let mine = fulcrum_shared::load_world(w)?;
         if mine.content_hash() != world.content_hash() {
-            return bad(format!(
+            return refuse(format!(
                 "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",
                 hello.world_name,
                 hello.world_hash,

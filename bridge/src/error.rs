@@ -1,5 +1,17 @@
-//! The bridge's transport errors, typed: zenoh's error is kept as the source and the
-//! operation is named (iceoryx2's are [`fulcrum_shared::IpcError`]).
+//! The bridge's errors, typed: zenoh's error is kept as the source and the operation is
+//! named (iceoryx2's are [`fulcrum_shared::IpcError`]); a request the bridge cannot
+//! take (a bad address, a missing secret, a host the learner refused) is [`Refused`],
+//! which the binary turns into exit code 2.
+
+/// The bridge cannot do what it was asked (bad input, not a failure): one sentence.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct Refused(pub String);
+
+/// Shorthand for a [`Refused`] error.
+pub fn refuse<T>(msg: impl Into<String>) -> anyhow::Result<T> {
+    Err(Refused(msg.into()).into())
+}
 
 /// A zenoh operation failed.
 #[derive(Debug, thiserror::Error)]

@@ -7,8 +7,8 @@ use std::time::{Duration, Instant};
 
 use anyhow::Result;
 use fulcrum_empowerment::service::Answer;
-use fulcrum_run::process::STOP;
 use fulcrum_shared::msg::{self, status, wire, Describe, EmpRequest, EmpResponse};
+use fulcrum_shared::stop::STOP;
 use fulcrum_shared::World;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;

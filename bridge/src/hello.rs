@@ -6,10 +6,10 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
+use crate::error::refuse;
 use anyhow::{Context, Result};
-use fulcrum_run::bad;
-use fulcrum_run::process::STOP;
 use fulcrum_shared::lines::ChildLine;
+use fulcrum_shared::stop::STOP;
 use fulcrum_shared::traj::HOST_STRIDE;
 use serde::{Deserialize, Serialize};
 use zenoh::Wait;
@@ -106,7 +106,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
         let replies = session
             .get(format!(
                 "fulcrum/hello?name={name};from={}",
-                fulcrum_run::process::hostname()
+                fulcrum_shared::host::hostname()
             ))
             .timeout(Duration::from_secs(2))
             .wait()
@@ -124,7 +124,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
                 }
                 Err(e) => {
                     let why = e.payload().try_to_string().unwrap_or_default().to_string();
-                    return bad(format!("the learner's host refused this host: {why}"));
+                    return refuse(format!("the learner's host refused this host: {why}"));
                 }
             }
         }

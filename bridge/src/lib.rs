@@ -57,7 +57,7 @@ pub mod session;
 pub mod stats;
 
 pub use connect::{connect, Want};
-pub use error::ZenohError;
+pub use error::{Refused, ZenohError};
 pub use forward::Forwarder;
 pub use hello::{actor_id, default_dir, joined_line, parse_joined, Hello, Joined};
 pub use listen::{listen, serve_lookups};

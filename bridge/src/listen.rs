@@ -12,10 +12,10 @@ use std::time::Duration;
 use anyhow::Result;
 use fulcrum_empowerment::service::Client;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_run::process::STOP;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::lines::ChildLine;
 use fulcrum_shared::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
+use fulcrum_shared::stop::STOP;
 use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
 use fulcrum_shared::IpcError;
 use fulcrum_shared::World;
@@ -37,7 +37,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     let paths = RunPaths {
         dir: dir.to_path_buf(),
     };
-    let cfg = RunConfig::load(&paths.config()).map_err(fulcrum_run::BadRequest)?;
+    let cfg = RunConfig::load(&paths.config()).map_err(crate::error::Refused)?;
     let world = fulcrum_shared::load_world(&cfg.world)?;
     let endpoint = locator(addr)?;
     let (secret, secret_file) = Secret::for_run(dir)?;

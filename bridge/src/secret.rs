@@ -22,8 +22,8 @@ use std::io::Read;
 use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
 use std::path::{Path, PathBuf};
 
+use crate::error::refuse;
 use anyhow::{Context, Result};
-use fulcrum_run::bad;
 
 /// The name of the secret's file in the run directory.
 pub const SECRET_FILE: &str = "secret";
@@ -54,7 +54,7 @@ impl Secret {
         let t = text.trim();
         let hex = t.strip_prefix(&format!("{USER}:")).unwrap_or(t);
         if hex.len() < 32 || !hex.bytes().all(|b| b.is_ascii_hexdigit()) {
-            return bad(format!(
+            return refuse(format!(
                 "{what} does not hold a run secret (at least 32 hex digits, as in the run directory's '{SECRET_FILE}' file)"
             ));
         }
@@ -66,7 +66,7 @@ impl Secret {
         let text = match std::fs::read_to_string(path) {
             Ok(t) => t,
             Err(e) => {
-                return bad(format!(
+                return refuse(format!(
                     "cannot read the secret file {}: {e}",
                     path.display()
                 ))

@@ -3,8 +3,8 @@
 
 use std::path::PathBuf;
 
+use crate::error::refuse;
 use anyhow::Result;
-use fulcrum_run::bad;
 use fulcrum_shared::IpcError;
 use iceoryx2::prelude::*;
 use zenoh::Wait;
@@ -31,7 +31,7 @@ pub fn locator(addr: &str) -> Result<String> {
         .rsplit_once(':')
         .is_some_and(|(h, p)| !h.is_empty() && p.parse::<u16>().is_ok());
     if !port_ok {
-        return bad(format!(
+        return refuse(format!(
             "'{addr}' is not an address: give host:port (e.g. 0.0.0.0:7447) or a zenoh locator (tcp/host:port)"
         ));
     }
@@ -71,12 +71,12 @@ pub fn open_session(
     auth: Option<&Auth>,
 ) -> Result<zenoh::Session> {
     if listen && auth.is_none() && !is_loopback(endpoint) {
-        return bad(format!(
+        return refuse(format!(
             "refusing to listen on {endpoint} without authentication: only a loopback address may be used without the run's secret"
         ));
     }
     if !(z.session_timeout.is_finite() && z.session_timeout >= 0.5) {
-        return bad(format!(
+        return refuse(format!(
             "a session timeout of {} s is too short: it must be at least 0.5 seconds",
             z.session_timeout
         ));
@@ -84,7 +84,7 @@ pub fn open_session(
     let mut c = match &z.zenoh_config {
         Some(p) => match zenoh::Config::from_file(p) {
             Ok(c) => c,
-            Err(e) => return bad(format!("{} is not a zenoh configuration: {e}", p.display())),
+            Err(e) => return refuse(format!("{} is not a zenoh configuration: {e}", p.display())),
         },
         None => zenoh::Config::default(),
     };
@@ -127,7 +127,7 @@ pub fn open_session(
     }
     match zenoh::open(c).wait() {
         Ok(s) => Ok(s),
-        Err(e) if listen => bad(format!("cannot listen on {endpoint}: {e}")),
+        Err(e) if listen => refuse(format!("cannot listen on {endpoint}: {e}")),
         Err(e) => Err(ZenohError::new(format!("a session towards {endpoint}"), e).into()),
     }
 }

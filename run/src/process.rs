@@ -119,14 +119,7 @@ pub fn allowed_cpus() -> Vec<usize> {
     }
 }
 
-/// This machine's hostname (or `host`).
-pub fn hostname() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|s| s.trim().to_string())
-        .ok()
-        .filter(|s| !s.is_empty())
-        .unwrap_or_else(|| "host".into())
-}
+pub use fulcrum_shared::host::hostname;
 
 /// `YYYYmmdd-HHMMSS` in UTC, without a date crate: run and experiment names.
 pub fn utc_stamp() -> String {

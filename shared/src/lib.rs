@@ -30,6 +30,8 @@ pub mod fsio;
 pub mod generate;
 /// A fast hasher for state-keyed maps.
 pub mod hash;
+/// This machine's name.
+pub mod host;
 /// Intrinsic reward forms (additive, potential-based shaping, count novelty).
 pub mod intrinsic;
 /// An iceoryx2 failure, typed.

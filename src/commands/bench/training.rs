@@ -341,7 +341,15 @@ pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
         let seed = seed.to_string();
         let steps = steps.to_string();
         let t0 = Instant::now();
-        let args = ["exp1-tree", "--seed", &seed, "--steps", &steps, "--actors", "1"];
+        let args = [
+            "exp1-tree",
+            "--seed",
+            &seed,
+            "--steps",
+            &steps,
+            "--actors",
+            "1",
+        ];
         match solve_once(&args, &dir)? {
             Some((s, e)) => {
                 solved += 1;
