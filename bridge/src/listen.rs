@@ -37,7 +37,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     let paths = RunPaths {
         dir: dir.to_path_buf(),
     };
-    let cfg = RunConfig::load(&paths.config()).map_err(crate::error::Refused)?;
+    let cfg = RunConfig::load(&paths.config())?;
     let world = fulcrum_shared::load_world(&cfg.world)?;
     let endpoint = locator(addr)?;
     let (secret, secret_file) = Secret::for_run(dir)?;

@@ -14,7 +14,7 @@ use fulcrum_learner::watch::Notice;
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::World;
 
-use crate::error::{bad, BadRequest};
+use crate::error::bad;
 use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
 use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
 use fulcrum_shared::lines::{ChildLine, LearnerProgress};
@@ -43,7 +43,7 @@ fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
     die_with_parent(a.parent);
     install_signal_handlers();
     let paths = RunPaths { dir: a.run.clone() };
-    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let cfg = RunConfig::load(&paths.config())?;
     let w = load_world(&cfg.world)?;
     if format!("{:016x}", w.content_hash()) != cfg.world_hash {
         return bad(format!(

@@ -17,7 +17,7 @@ use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
 
-use crate::error::{bad, BadRequest};
+use crate::error::bad;
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use fulcrum_empowerment::request::objects_or_default;
@@ -161,7 +161,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         let paths = run_dir(dir)?;
         let lock = lock_for_run(dir)?;
         clean_stale_temps(&paths)?;
-        let mut cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+        let mut cfg = RunConfig::load(&paths.config())?;
         if let Some(w) = &a.world {
             if w != &cfg.world && w != &cfg.world_name {
                 return bad(format!(
@@ -196,7 +196,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         if let Some(t) = a.stall_timeout {
             cfg.stall_timeout_s = t;
         }
-        cfg.check().map_err(BadRequest)?;
+        cfg.check()?;
         let w = load_world(&cfg.world)?;
         if format!("{:016x}", w.content_hash()) != cfg.world_hash {
             return bad(format!(
@@ -316,7 +316,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         },
     };
     let mut cfg = cfg;
-    cfg.check().map_err(BadRequest)?;
+    cfg.check()?;
     if a.steps.is_some() {
         whole_updates(&cfg)?;
     }

@@ -129,6 +129,42 @@ fn default_stall_timeout() -> f64 {
     10.0
 }
 
+/// What is wrong with a run's configuration: bad input, one sentence each (the binary
+/// exits 2).
+#[derive(Debug, thiserror::Error)]
+pub enum ConfigError {
+    /// `config.toml` cannot be read.
+    #[error("cannot read {}: {source}", path.display())]
+    Read {
+        /// The file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: std::io::Error,
+    },
+    /// `config.toml` is not a run configuration.
+    #[error("{} is not a valid run configuration: {message}", path.display())]
+    Invalid {
+        /// The file.
+        path: std::path::PathBuf,
+        /// TOML's or serde's sentence.
+        message: String,
+    },
+    /// A setting is out of range or contradicts another ([`RunConfig::check`]).
+    #[error("{0}")]
+    Setting(String),
+    /// A checkpoint was trained with another action space or view.
+    #[error("the checkpoint was trained with {key} = {checkpoint}, but config.toml says {config}")]
+    CheckpointMismatch {
+        /// The mark.
+        key: &'static str,
+        /// The checkpoint's value.
+        checkpoint: String,
+        /// The configuration's.
+        config: String,
+    },
+}
+
 /// How the empowerment horizon follows the inventory.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -268,13 +304,15 @@ impl RunConfig {
     /// continued with another setting. Checkpoints from before masking or views carry
     /// no mark (and were trained unmasked or with the full view, as their configuration
     /// files read).
-    pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), String> {
+    pub fn fits_checkpoint(&self, extra: &Extra) -> Result<(), ConfigError> {
         for (key, ours) in self.checkpoint_marks() {
             match extra.meta.get(key) {
                 Some(m) if *m != ours => {
-                    return Err(format!(
-                        "the checkpoint was trained with {key} = {m}, but config.toml says {ours}"
-                    ))
+                    return Err(ConfigError::CheckpointMismatch {
+                        key,
+                        checkpoint: m.clone(),
+                        config: ours,
+                    })
                 }
                 _ => {}
             }
@@ -324,7 +362,11 @@ impl RunConfig {
     }
 
     /// The first thing wrong with the configuration, as one sentence.
-    pub fn check(&self) -> Result<(), String> {
+    pub fn check(&self) -> Result<(), ConfigError> {
+        self.first_problem().map_err(ConfigError::Setting)
+    }
+
+    fn first_problem(&self) -> Result<(), String> {
         let b = self.batch();
         let checks: [(bool, String); 14] = [
             (
@@ -453,15 +495,14 @@ impl RunConfig {
     }
 
     /// Read `config.toml`.
-    pub fn load(path: &Path) -> Result<RunConfig, String> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-        toml::from_str(&text).map_err(|e| {
-            format!(
-                "{} is not a valid run configuration: {}",
-                path.display(),
-                e.message()
-            )
+    pub fn load(path: &Path) -> Result<RunConfig, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        toml::from_str(&text).map_err(|e| ConfigError::Invalid {
+            path: path.to_path_buf(),
+            message: e.message().to_string(),
         })
     }
 
@@ -556,7 +597,7 @@ mod tests {
         assert!(c.fits_checkpoint(&extra).is_ok());
         let mut crop = c.clone();
         crop.view = View::Crop(4);
-        let e = crop.fits_checkpoint(&extra).unwrap_err();
+        let e = crop.fits_checkpoint(&extra).unwrap_err().to_string();
         assert!(
             e.contains("trained with view = full") && e.contains("crop:4"),
             "{e}"
@@ -602,10 +643,14 @@ mod tests {
         assert!(c.check().is_ok());
         let mut bad = c.clone();
         bad.beta = -1.0;
-        assert!(bad.check().unwrap_err().contains("beta -1"));
+        assert!(bad.check().unwrap_err().to_string().contains("beta -1"));
         let mut bad = c.clone();
         bad.actors = 0;
-        assert!(bad.check().unwrap_err().contains("number of actors"));
+        assert!(bad
+            .check()
+            .unwrap_err()
+            .to_string()
+            .contains("number of actors"));
         let mut bad = c.clone();
         bad.empowerment = true;
         bad.intrinsic = Intrinsic::Potential;
@@ -613,12 +658,14 @@ mod tests {
         assert!(bad
             .check()
             .unwrap_err()
+            .to_string()
             .contains("the horizon with the tool"));
         let mut bad = c.clone();
         bad.intrinsic = Intrinsic::Potential;
         assert!(bad
             .check()
             .unwrap_err()
+            .to_string()
             .contains("needs an empowerment service"));
         // An unknown form or mode cannot be represented: the file is refused on load.
         let text = c
@@ -632,6 +679,6 @@ mod tests {
         assert!(toml::from_str::<RunConfig>(&text).is_err());
         let mut bad = c;
         bad.horizon_mode = HorizonMode::Fixed;
-        assert!(bad.check().unwrap_err().contains("differ"));
+        assert!(bad.check().unwrap_err().to_string().contains("differ"));
     }
 }

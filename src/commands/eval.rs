@@ -3,8 +3,8 @@
 //! 95% intervals and appends a row to `RUN/eval.csv`.
 
 use anyhow::{Context, Result};
+use fulcrum_run::bad;
 use fulcrum_run::eval::{evaluate, summarise, Estimate};
-use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::load_world;
 
@@ -16,7 +16,7 @@ pub fn run(a: &EvalArgs) -> Result<()> {
     if !(1..=100_000).contains(&a.episodes) {
         return bad(format!("--episodes {} must be 1 to 100000", a.episodes));
     }
-    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let cfg = RunConfig::load(&paths.config())?;
     let run_world = load_world(&cfg.world)?;
     let world = match &a.world {
         Some(w) => load_world(w)?,

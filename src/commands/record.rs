@@ -10,8 +10,8 @@
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
 use anyhow::Result;
+use fulcrum_run::bad;
 use fulcrum_run::record::record;
-use fulcrum_run::{bad, BadRequest};
 use fulcrum_shared::config::RunConfig;
 use fulcrum_shared::load_world;
 
@@ -20,7 +20,7 @@ use crate::cli::RecordArgs;
 /// `fulcrum record`.
 pub fn run(a: &RecordArgs) -> Result<()> {
     let paths = fulcrum_run::plan::run_dir(&a.run)?;
-    let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+    let cfg = RunConfig::load(&paths.config())?;
     let w = load_world(&cfg.world)?;
     if a.episodes == 0 || a.episodes > 100 {
         return bad(format!("--episodes {} must be 1 to 100", a.episodes));

@@ -36,7 +36,7 @@ impl Served {
     fn from_args(a: &ServeArgs) -> Result<Served> {
         if let Some(dir) = &a.run {
             let paths = RunPaths { dir: dir.clone() };
-            let cfg = RunConfig::load(&paths.config()).map_err(BadRequest)?;
+            let cfg = RunConfig::load(&paths.config())?;
             let w = world(&cfg.world)?;
             if format!("{:016x}", w.content_hash()) != cfg.world_hash {
                 return bad(format!(

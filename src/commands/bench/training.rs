@@ -230,8 +230,7 @@ pub(super) fn train_sps(
         String::from_utf8_lossy(&out.stderr)
     );
     let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv"))?;
-    let cfg = fulcrum_shared::config::RunConfig::load(&dir.join("config.toml"))
-        .map_err(anyhow::Error::msg)?;
+    let cfg = fulcrum_shared::config::RunConfig::load(&dir.join("config.toml"))?;
     let _ = std::fs::remove_dir_all(dir);
     let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
     ensure!(!sps.is_empty(), "the run made too few updates");
