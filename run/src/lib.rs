@@ -24,6 +24,7 @@
 //! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
 //! | [`stats`] | curves over seeds, censored times to solve, tests |
 //! | [`error`] | bad requests and interruptions (the binary's exit codes 2 and 130) |
+//! | [`host`] | an actor host's supervision: its bridge and actors, restarted as the supervisor restarts its own |
 //! | [`argv`] | the command lines of fulcrum's own child processes, one typed builder each |
 
 pub mod argv;
@@ -32,6 +33,7 @@ pub mod curve;
 pub mod error;
 pub mod eval;
 pub mod experiment;
+pub mod host;
 pub mod lock;
 pub mod plan;
 pub mod process;

@@ -9,15 +9,17 @@
 //!                                       the host's own shared-memory namespace
 //! ```
 //!
-//! Crashed actors are restarted after a back-off, each within its own budget of
-//! restarts in a window (as the supervisor's children: `fulcrum_run::restart`); a lost link is the bridge's business (zenoh
-//! reconnects, the actors wait for weights meanwhile). The host stops when the run is
-//! over (the learner's bridge says so), on SIGINT/SIGTERM, or when the bridge fails.
+//! This command checks the host's settings, starts the bridge and waits until it has
+//! joined; the supervision is the run library's (`fulcrum_run::host`): crashed actors
+//! are restarted after a back-off, each within its own budget of restarts in a window
+//! (as the supervisor's children: `fulcrum_run::restart`); a lost link is the bridge's
+//! business (zenoh reconnects, the actors wait for weights meanwhile). The host stops
+//! when the run is over (the learner's bridge says so), on SIGINT/SIGTERM, or when the
+//! bridge fails.
 
 use std::os::unix::process::CommandExt;
 use std::process::{Child, Command, Stdio};
-use std::sync::atomic::Ordering;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use anyhow::{Context, Result};
 
@@ -26,11 +28,9 @@ use fulcrum_bridge::{actor_id, default_dir, parse_joined};
 use fulcrum_run::argv::{self, ChildKind};
 use fulcrum_run::bad;
 use fulcrum_run::child::ChildRequest;
-use fulcrum_run::process::{
-    cores, hostname, install_signal_handlers, spawn_until, stop_children, Ready, STOP,
-};
-use fulcrum_run::restart::{Budget, RestartPolicy};
-use fulcrum_shared::lines::ChildLine;
+use fulcrum_run::host::{supervise_host, HostRun};
+use fulcrum_run::process::{cores, hostname, install_signal_handlers, spawn_until, Ready};
+use fulcrum_run::restart::RestartPolicy;
 
 /// `fulcrum actor-host`.
 pub fn run(a: &ActorHostArgs) -> Result<()> {
@@ -77,7 +77,7 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         .stdin(Stdio::null())
         .process_group(0);
     // Wait for the bridge to join.
-    let (mut bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, parse_joined)? {
+    let (bridge, joined, rx) = match spawn_until(cmd, "the bridge", None, parse_joined)? {
         Ready::Ready(bridge, joined, rx) => (bridge, joined, rx),
         Ready::Stopped => return Ok(()),
         Ready::Exited(s) => {
@@ -115,85 +115,16 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             .spawn()
             .with_context(|| format!("cannot start actor {j}"))
     };
-    let mut actors: Vec<(Child, u32)> = Vec::with_capacity(k);
-    for j in 0..k {
-        actors.push((start(j, 0)?, 0));
-    }
     // Each actor has its own budget of restarts in a window, and waits a back-off
     // before each restart (as the supervisor's children do).
-    let policy = RestartPolicy {
-        max: a.max_restarts,
-        window: Duration::from_secs_f64(a.restart_window),
-    };
-    let mut budgets = vec![Budget::default(); k];
-    // An actor that stopped and waits for its back-off: when to restart it.
-    let mut due: Vec<Option<Instant>> = vec![None; k];
-    let mut over = false;
-    let result = loop {
-        while let Ok(line) = rx.try_recv() {
-            if ChildLine::parse(&line) == Some(ChildLine::RunOver) {
-                over = true;
-            }
-        }
-        if STOP.load(Ordering::Relaxed) {
-            break Ok(());
-        }
-        if let Some(s) = bridge.try_wait()? {
-            while let Ok(line) = rx.recv_timeout(Duration::from_millis(100)) {
-                over |= ChildLine::parse(&line) == Some(ChildLine::RunOver);
-            }
-            break if over || s.success() {
-                eprintln!("fulcrum actor-host: the run is over");
-                Ok(())
-            } else {
-                Err(anyhow::anyhow!("the bridge stopped ({s})"))
-            };
-        }
-        let mut failure = None;
-        let now = Instant::now();
-        for (j, slot) in actors.iter_mut().enumerate() {
-            if let Some(at) = due[j] {
-                if now >= at {
-                    due[j] = None;
-                    let inc = slot.1 + 1;
-                    *slot = (start(j, inc)?, inc);
-                }
-                continue;
-            }
-            if let Some(s) = slot.0.try_wait()? {
-                match budgets[j].stopped(&policy, now) {
-                    Ok(r) => {
-                        eprintln!(
-                            "fulcrum actor-host: actor {j} stopped ({s}); restarting it after {:.1} s (restart {} of {} allowed in {} s)",
-                            r.delay.as_secs_f64(),
-                            r.n,
-                            policy.max,
-                            policy.window.as_secs_f64()
-                        );
-                        due[j] = Some(now + r.delay);
-                    }
-                    Err(o) => {
-                        failure = Some(anyhow::anyhow!(
-                            "actor {j} stopped ({s}), its stop number {} within {} s: over its budget of {} restarts in {} s",
-                            o.n,
-                            policy.window.as_secs_f64(),
-                            policy.max,
-                            policy.window.as_secs_f64()
-                        ));
-                        break;
-                    }
-                }
-            }
-        }
-        if let Some(e) = failure {
-            break Err(e);
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    // Stop actors and the bridge.
-    let mut all: Vec<Child> = actors.into_iter().map(|(c, _)| c).collect();
-    all.push(bridge);
-    stop_children(all);
-    fulcrum_empowerment::service::clean_dead_nodes();
-    result
+    supervise_host(HostRun {
+        bridge,
+        bridge_lines: rx,
+        actors: k,
+        policy: RestartPolicy {
+            max: a.max_restarts,
+            window: Duration::from_secs_f64(a.restart_window),
+        },
+        start: Box::new(start),
+    })
 }
