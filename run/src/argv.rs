@@ -163,21 +163,21 @@ pub fn bridge_connect(b: &BridgeConnect) -> Vec<String> {
 pub enum TrainJob {
     /// Continue the run in this directory.
     Resume(PathBuf),
-    /// A new run.
+    /// A new run (`None`: train's default).
     New {
         /// The world.
         world: String,
         /// Its seed.
-        seed: u64,
+        seed: Option<u64>,
         /// Env steps.
-        steps: u64,
+        steps: Option<u64>,
         /// Actor processes.
         actors: usize,
         /// Worlds per actor.
         envs_per_actor: usize,
         /// The run directory.
-        out: PathBuf,
-        /// The arm's own `train` flags, and the experiment's, as given.
+        out: Option<PathBuf>,
+        /// The arm's own `train` flags ([`arm_flags`]), and the experiment's, as given.
         flags: Vec<String>,
     },
 }
@@ -195,22 +195,71 @@ pub fn train(job: &TrainJob) -> Vec<String> {
             out,
             flags,
         } => {
-            let mut v = vec![
-                "train".into(),
-                world.clone(),
-                "--seed".into(),
-                seed.to_string(),
-                "--steps".into(),
-                steps.to_string(),
+            let mut v = vec!["train".into(), world.clone()];
+            if let Some(s) = seed {
+                v.extend(["--seed".into(), s.to_string()]);
+            }
+            if let Some(s) = steps {
+                v.extend(["--steps".into(), s.to_string()]);
+            }
+            v.extend([
                 "--actors".into(),
                 actors.to_string(),
                 "--envs-per-actor".into(),
                 envs_per_actor.to_string(),
-                "--out".into(),
-                out.display().to_string(),
-            ];
+            ]);
+            if let Some(o) = out {
+                v.extend(["--out".into(), o.display().to_string()]);
+            }
             v.extend(flags.iter().cloned());
             v
         }
     }
+}
+
+/// The `train` flags of an intrinsic form with the experiment's beta, if it sets one.
+pub fn form_flags(form: &str, beta: Option<f64>) -> Vec<String> {
+    let mut v = vec!["--intrinsic".to_string(), form.to_string()];
+    if let Some(b) = beta {
+        v.extend(["--beta".into(), b.to_string()]);
+    }
+    v
+}
+
+/// The arm names [`arm_flags`] knows.
+pub const ARMS: &str = "baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, horizon-potential-deterministic, first-visit, count, paper, cleanrl, rllib, baseline-unmasked";
+
+/// The `train` flags of an experiment's named arm: `form` is the `empowerment` arm's
+/// form, `beta` the experiment's `--beta`. Every arm with an intrinsic reward names its
+/// form, so that an arm means the same whatever train's default is. `None` for a name
+/// that is not an arm.
+pub fn arm_flags(name: &str, form: &str, beta: Option<f64>) -> Option<Vec<String>> {
+    let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
+    Some(match name {
+        "baseline" => s(&["--no-empowerment"]),
+        "none" => s(&["--intrinsic", "none"]),
+        "empowerment" => form_flags(form, beta),
+        "additive" | "potential" | "count" | "horizon-potential" | "first-visit" => {
+            form_flags(name, beta)
+        }
+        "baseline-unmasked" => s(&["--no-empowerment", "--no-action-mask"]),
+        "paper" => s(&["--paper"]),
+        "horizon-potential-deterministic" => {
+            let mut v = form_flags("horizon-potential", beta);
+            v.extend(s(&["--empowerment-model", "deterministic"]));
+            v
+        }
+        "cleanrl" | "rllib" => s(&["--no-empowerment", "--ppo-preset", name]),
+        "additive-fixed" => {
+            let mut v = s(&["--horizon-mode", "fixed"]);
+            v.extend(form_flags("additive", beta));
+            v
+        }
+        _ => return None,
+    })
+}
+
+/// The `train` flag of a view (an arm run once per view).
+pub fn view_flags(view: &fulcrum_shared::View) -> Vec<String> {
+    vec!["--view".into(), view.to_string()]
 }

@@ -120,11 +120,11 @@ fn both_bridges_get_every_setting() {
 fn an_experiments_runs_parse_as_train_requests() {
     let job = TrainJob::New {
         world: "exp1-tree-slip".into(),
-        seed: 9,
-        steps: 499_712,
+        seed: Some(9),
+        steps: Some(499_712),
         actors: 1,
         envs_per_actor: 8,
-        out: PathBuf::from("/e/runs/additive/seed-9"),
+        out: Some(PathBuf::from("/e/runs/additive/seed-9")),
         flags: vec![
             "--intrinsic".into(),
             "horizon-potential".into(),
@@ -154,4 +154,35 @@ fn an_experiments_runs_parse_as_train_requests() {
         Command::Train(t) => assert_eq!(t.resume, Some(PathBuf::from("/e/runs/x"))),
         other => panic!("{other:?}"),
     }
+}
+
+/// Every named arm of an experiment parses as a train request of the form it names.
+#[test]
+fn every_arm_is_train_flags() {
+    use fulcrum_shared::intrinsic::Intrinsic;
+    for name in argv::ARMS.split(", ") {
+        let flags = argv::arm_flags(name, "potential", Some(0.25)).unwrap();
+        let job = TrainJob::New {
+            world: "room".into(),
+            seed: None,
+            steps: None,
+            actors: 1,
+            envs_per_actor: 8,
+            out: None,
+            flags,
+        };
+        let r = match parse(argv::train(&job)) {
+            Command::Train(t) => t.request().unwrap_or_else(|e| panic!("{name}: {e}")),
+            other => panic!("{other:?}"),
+        };
+        let want = match name {
+            "baseline" | "baseline-unmasked" | "cleanrl" | "rllib" | "none" => Intrinsic::None,
+            "empowerment" => Intrinsic::Potential,
+            "paper" | "additive-fixed" => Intrinsic::Additive,
+            "horizon-potential-deterministic" => Intrinsic::HorizonPotential,
+            form => form.parse().unwrap(),
+        };
+        assert_eq!(r.intrinsic, Some(want), "{name}");
+    }
+    assert_eq!(argv::arm_flags("bogus", "additive", None), None);
 }

@@ -7,6 +7,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Parser;
+use fulcrum_run::argv;
 use fulcrum_run::experiment::{prepare_set, Arm, ExperimentRequest, SetRequest, SetWorld};
 use fulcrum_run::plan::plan;
 use fulcrum_run::process::utc_stamp;
@@ -27,50 +28,13 @@ struct TrainOnly {
 /// The arms asked for: `--arms` (baseline, empowerment) then one per `--beta-sweep` value.
 fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
     let mut out: Vec<Arm> = Vec::new();
-    // Every arm with an intrinsic reward names its form: an arm means the same whatever
-    // train's default is (experiment directories from when the additive bonus was the
-    // default, whose additive arms named none, are read as naming it).
-    let with_beta = |form: &str, beta: Option<f64>| {
-        let mut v = vec!["--intrinsic".to_string(), form.to_string()];
-        if let Some(b) = beta {
-            v.extend(["--beta".into(), b.to_string()]);
-        }
-        v
-    };
     let form = a.intrinsic.as_str();
     for name in a.arms.split(',').map(str::trim).filter(|s| !s.is_empty()) {
-        let args = match name {
-            "baseline" => vec!["--no-empowerment".to_string()],
-            "none" => vec!["--intrinsic".to_string(), "none".to_string()],
-            "empowerment" => with_beta(form, a.beta),
-            "additive" | "potential" | "count" | "horizon-potential" | "first-visit" => {
-                with_beta(name, a.beta)
-            }
-            "baseline-unmasked" => vec![
-                "--no-empowerment".to_string(),
-                "--no-action-mask".to_string(),
-            ],
-            "paper" => vec!["--paper".to_string()],
-            "horizon-potential-deterministic" => {
-                let mut v = with_beta("horizon-potential", a.beta);
-                v.extend(["--empowerment-model".into(), "deterministic".into()]);
-                v
-            }
-            "cleanrl" | "rllib" => vec![
-                "--no-empowerment".to_string(),
-                "--ppo-preset".to_string(),
-                name.to_string(),
-            ],
-            "additive-fixed" => {
-                let mut v = vec!["--horizon-mode".to_string(), "fixed".to_string()];
-                v.extend(with_beta("additive", a.beta));
-                v
-            }
-            other => {
-                return bad(format!(
-                    "--arms: unknown arm '{other}' (arms: baseline, empowerment, none, additive, additive-fixed, potential, horizon-potential, horizon-potential-deterministic, first-visit, count, paper, cleanrl, rllib, baseline-unmasked; for betas use --beta-sweep)"
-                ))
-            }
+        let Some(args) = argv::arm_flags(name, form, a.beta) else {
+            return bad(format!(
+                "--arms: unknown arm '{name}' (arms: {}; for betas use --beta-sweep)",
+                argv::ARMS
+            ));
         };
         out.push(Arm {
             name: name.to_string(),
@@ -89,7 +53,7 @@ fn arms(a: &ExperimentArgs) -> Result<Vec<Arm>> {
                 } else {
                     format!("{form}-beta-{v}")
                 },
-                args: with_beta(form, Some(v)),
+                args: argv::form_flags(form, Some(v)),
             });
         }
     }
@@ -126,7 +90,7 @@ fn with_views(arms: Vec<Arm>, views: &str) -> Result<Vec<Arm>> {
                 View::Full => arm.clone(),
                 View::Crop(r) => Arm {
                     name: format!("{}-crop{r}", arm.name),
-                    args: [&arm.args[..], &["--view".into(), view.to_string()]].concat(),
+                    args: [&arm.args[..], &argv::view_flags(&view)[..]].concat(),
                 },
             });
         }
@@ -174,18 +138,15 @@ fn request(
     let mut steps = 0;
     let mut world_name = String::new();
     for arm in arms {
-        let mut argv = vec!["train".to_string(), world.to_string()];
-        if let Some(s) = a.steps {
-            argv.extend(["--steps".into(), s.to_string()]);
-        }
-        argv.extend([
-            "--actors".into(),
-            a.actors.to_string(),
-            "--envs-per-actor".into(),
-            a.envs_per_actor.to_string(),
-        ]);
-        argv.extend(arm.args.iter().cloned());
-        argv.extend(a.train_args.iter().cloned());
+        let argv = argv::train(&argv::TrainJob::New {
+            world: world.to_string(),
+            seed: None,
+            steps: a.steps,
+            actors: a.actors,
+            envs_per_actor: a.envs_per_actor,
+            out: None,
+            flags: [&arm.args[..], &a.train_args[..]].concat(),
+        });
         let parsed = TrainOnly::try_parse_from(&argv).or_else(|e| {
             let msg = e.to_string();
             let first = msg

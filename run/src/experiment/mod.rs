@@ -180,11 +180,11 @@ fn train_args(spec: &Spec, arm: &Arm, job: &Job, resume: bool) -> Vec<String> {
     } else {
         crate::argv::TrainJob::New {
             world: spec.world.clone(),
-            seed: job.seed,
-            steps: spec.steps,
+            seed: Some(job.seed),
+            steps: Some(spec.steps),
             actors: spec.actors,
             envs_per_actor: spec.envs_per_actor,
-            out: job.dir.clone(),
+            out: Some(job.dir.clone()),
             flags: [&arm.args[..], &spec.extra[..]].concat(),
         }
     })
