@@ -8,7 +8,24 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::child::ChildRequest;
+/// What the supervisor tells a child process.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ChildRequest {
+    /// The run directory.
+    pub run: PathBuf,
+    /// The run's iceoryx2 namespace.
+    pub namespace: String,
+    /// The supervisor's pid: the child dies with it.
+    pub parent: u32,
+    /// The actor's index.
+    pub index: u32,
+    /// How often this actor has been restarted.
+    pub incarnation: u32,
+    /// The learner stops after this many updates (exit code 3).
+    pub stop_after_updates: Option<u64>,
+    /// The run's tag, hex (actors on other hosts).
+    pub run_tag: Option<String>,
+}
 
 /// Which hidden child process.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

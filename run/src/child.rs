@@ -3,7 +3,6 @@
 //! that the world it loads is the run's.
 
 use std::io::Write;
-use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
@@ -20,24 +19,9 @@ use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
 use fulcrum_shared::lines::{ChildLine, LearnerProgress};
 use fulcrum_shared::load_world;
 
-/// What the supervisor tells a child process.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct ChildRequest {
-    /// The run directory.
-    pub run: PathBuf,
-    /// The run's iceoryx2 namespace.
-    pub namespace: String,
-    /// The supervisor's pid: the child dies with it.
-    pub parent: u32,
-    /// The actor's index.
-    pub index: u32,
-    /// How often this actor has been restarted.
-    pub incarnation: u32,
-    /// The learner stops after this many updates (exit code 3).
-    pub stop_after_updates: Option<u64>,
-    /// The run's tag, hex (actors on other hosts).
-    pub run_tag: Option<String>,
-}
+/// What the supervisor tells a child process (built into a command line by
+/// [`crate::argv::child`]).
+pub use crate::argv::ChildRequest;
 
 fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
     die_with_parent(a.parent);

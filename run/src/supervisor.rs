@@ -35,8 +35,7 @@ use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_shared::config::RunConfig;
 
-use crate::argv::{self, ChildKind};
-use crate::child::ChildRequest;
+use crate::argv::{self, ChildKind, ChildRequest};
 use crate::error::bad;
 use crate::process::{
     cores, describe_status, hostname, send_on_exit, signal, spawn_until_ready, stop_children,
