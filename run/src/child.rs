@@ -23,10 +23,9 @@ use fulcrum_shared::load_world;
 /// [`crate::argv::child`]).
 pub use crate::argv::ChildRequest;
 
-fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
-    die_with_parent(a.parent);
-    install_signal_handlers();
-    let paths = RunPaths { dir: a.run.clone() };
+/// A run directory's configuration and its world, refused where the world file has
+/// changed since the run began (its content hash is the run's).
+pub fn load_run(paths: &RunPaths) -> Result<(RunConfig, World)> {
     let cfg = RunConfig::load(&paths.config())?;
     let w = load_world(&cfg.world)?;
     if format!("{:016x}", w.content_hash()) != cfg.world_hash {
@@ -35,6 +34,14 @@ fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
             cfg.world, cfg.world_hash
         ));
     }
+    Ok((cfg, w))
+}
+
+fn child_setup(a: &ChildRequest) -> Result<(RunConfig, World, RunPaths)> {
+    die_with_parent(a.parent);
+    install_signal_handlers();
+    let paths = RunPaths { dir: a.run.clone() };
+    let (cfg, w) = load_run(&paths)?;
     Ok((cfg, w, paths))
 }
 

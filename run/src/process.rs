@@ -231,7 +231,7 @@ pub fn spawn_until_ready(
     deadline: Option<Duration>,
 ) -> Result<Ready<()>> {
     spawn_until(cmd, what, deadline, |l| {
-        ChildLine::parse(l).filter(ChildLine::is_ready).map(|_| ())
+        ChildLine::says_ready(l).then_some(())
     })
 }
 

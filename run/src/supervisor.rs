@@ -360,7 +360,7 @@ impl Supervisor {
                     Err(_) => self.learner_lines = never(),
                 },
                 recv(self.service_lines) -> line => match line {
-                    Ok(l) if ChildLine::parse(&l).is_some_and(|c| c.is_ready()) => {
+                    Ok(l) if ChildLine::says_ready(&l) => {
                         self.service_ready(&progress)
                     }
                     Ok(_) => {}

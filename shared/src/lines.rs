@@ -138,6 +138,11 @@ impl ChildLine {
     pub fn parse(line: &str) -> Option<ChildLine> {
         line.parse().ok()
     }
+
+    /// Whether `line` is a child's line saying it is ready.
+    pub fn says_ready(line: &str) -> bool {
+        ChildLine::parse(line).is_some_and(|c| c.is_ready())
+    }
 }
 
 const SERVICE_READY: &str = "fulcrum serve: ready: ";

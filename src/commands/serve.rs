@@ -12,8 +12,9 @@ use fulcrum_shared::msg;
 use crate::cli::ServeArgs;
 use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 use fulcrum_learner::paths::RunPaths;
+use fulcrum_run::child::load_run;
 use fulcrum_run::{bad, BadRequest};
-use fulcrum_shared::config::{EmpowermentModel, RunConfig};
+use fulcrum_shared::config::EmpowermentModel;
 use fulcrum_shared::load_world as world;
 use fulcrum_shared::World;
 
@@ -35,15 +36,7 @@ struct Served {
 impl Served {
     fn from_args(a: &ServeArgs) -> Result<Served> {
         if let Some(dir) = &a.run {
-            let paths = RunPaths { dir: dir.clone() };
-            let cfg = RunConfig::load(&paths.config())?;
-            let w = world(&cfg.world)?;
-            if format!("{:016x}", w.content_hash()) != cfg.world_hash {
-                return bad(format!(
-                    "the world '{}' differs from the run's (hash {})",
-                    cfg.world, cfg.world_hash
-                ));
-            }
+            let (cfg, w) = load_run(&RunPaths { dir: dir.clone() })?;
             return Ok(Served {
                 world: w,
                 tool: cfg.tool.as_request().map(str::to_string),

@@ -185,7 +185,7 @@ pub(super) fn run(addr: Option<&str>, quick: bool, figs: &mut Vec<Figure>) -> Re
             let ready = BufReader::new(out)
                 .lines()
                 .map_while(|l| l.ok())
-                .any(|l| ChildLine::parse(&l).is_some_and(|c| c.is_ready()));
+                .any(|l| ChildLine::says_ready(&l));
             ensure!(ready, "the remote peer stopped before it was ready");
             (Some(peer), a, "peer on 127.0.0.1 (one machine)".to_string())
         }
