@@ -175,56 +175,80 @@ pub fn bridge_connect(b: &BridgeConnect) -> Vec<String> {
     v
 }
 
-/// One run of an experiment, as `fulcrum train` takes it.
+/// A new run, as `fulcrum train` takes it (`None`: train's default).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NewRun {
+    /// The world.
+    pub world: String,
+    /// Its seed.
+    pub seed: Option<u64>,
+    /// Env steps.
+    pub steps: Option<u64>,
+    /// Actor processes.
+    pub actors: Option<usize>,
+    /// Worlds per actor.
+    pub envs_per_actor: Option<usize>,
+    /// Updates between checkpoints.
+    pub checkpoint_every: Option<u64>,
+    /// The run directory.
+    pub out: Option<PathBuf>,
+    /// More `train` flags: an arm's own ([`arm_flags`]), and an experiment's, as given.
+    pub flags: Vec<String>,
+}
+
+impl NewRun {
+    /// A run of `world` with train's defaults but for the steps and the directory.
+    pub fn new(world: &str, steps: u64, out: &Path) -> NewRun {
+        NewRun {
+            world: world.to_string(),
+            seed: None,
+            steps: Some(steps),
+            actors: None,
+            envs_per_actor: None,
+            checkpoint_every: None,
+            out: Some(out.to_path_buf()),
+            flags: Vec::new(),
+        }
+    }
+}
+
+/// One run, as `fulcrum train` takes it.
 #[derive(Debug, Clone, PartialEq)]
 pub enum TrainJob {
     /// Continue the run in this directory.
     Resume(PathBuf),
-    /// A new run (`None`: train's default).
-    New {
-        /// The world.
-        world: String,
-        /// Its seed.
-        seed: Option<u64>,
-        /// Env steps.
-        steps: Option<u64>,
-        /// Actor processes.
-        actors: usize,
-        /// Worlds per actor.
-        envs_per_actor: usize,
-        /// The run directory.
-        out: Option<PathBuf>,
-        /// The arm's own `train` flags ([`arm_flags`]), and the experiment's, as given.
-        flags: Vec<String>,
-    },
+    /// A new run.
+    New(NewRun),
 }
 
 /// `train ...`.
 pub fn train(job: &TrainJob) -> Vec<String> {
     match job {
         TrainJob::Resume(dir) => vec!["train".into(), "--resume".into(), dir.display().to_string()],
-        TrainJob::New {
+        TrainJob::New(NewRun {
             world,
             seed,
             steps,
             actors,
             envs_per_actor,
+            checkpoint_every,
             out,
             flags,
-        } => {
+        }) => {
             let mut v = vec!["train".into(), world.clone()];
-            if let Some(s) = seed {
-                v.extend(["--seed".into(), s.to_string()]);
-            }
-            if let Some(s) = steps {
-                v.extend(["--steps".into(), s.to_string()]);
-            }
-            v.extend([
-                "--actors".into(),
-                actors.to_string(),
-                "--envs-per-actor".into(),
-                envs_per_actor.to_string(),
-            ]);
+            let mut opt = |flag: &str, value: Option<String>| {
+                if let Some(x) = value {
+                    v.extend([flag.to_string(), x]);
+                }
+            };
+            opt("--seed", seed.map(|s| s.to_string()));
+            opt("--steps", steps.map(|s| s.to_string()));
+            opt("--actors", actors.map(|s| s.to_string()));
+            opt("--envs-per-actor", envs_per_actor.map(|s| s.to_string()));
+            opt(
+                "--checkpoint-every",
+                checkpoint_every.map(|s| s.to_string()),
+            );
             if let Some(o) = out {
                 v.extend(["--out".into(), o.display().to_string()]);
             }
@@ -232,6 +256,90 @@ pub fn train(job: &TrainJob) -> Vec<String> {
             v
         }
     }
+}
+
+/// `experiment --worlds SET ...`: an experiment over a set of generated worlds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExperimentWorlds {
+    /// The set, as `--worlds` takes it (`gen:N[:params]`).
+    pub worlds: String,
+    /// Seeds per world.
+    pub seeds: u64,
+    /// The arms, by name ([`ARMS`]).
+    pub arms: Vec<String>,
+    /// Env steps per run.
+    pub steps: u64,
+    /// The experiment's directory.
+    pub out: PathBuf,
+}
+
+/// `experiment --worlds ...`.
+pub fn experiment_worlds(e: &ExperimentWorlds) -> Vec<String> {
+    vec![
+        "experiment".into(),
+        "--worlds".into(),
+        e.worlds.clone(),
+        "--seeds".into(),
+        e.seeds.to_string(),
+        "--arms".into(),
+        e.arms.join(","),
+        "--steps".into(),
+        e.steps.to_string(),
+        "--out".into(),
+        e.out.display().to_string(),
+    ]
+}
+
+/// `serve WORLD --namespace NS`: a service of a world with its file's settings.
+pub fn serve_world(world: &str, namespace: &str) -> Vec<String> {
+    vec![
+        "serve".into(),
+        world.to_string(),
+        "--namespace".into(),
+        namespace.to_string(),
+    ]
+}
+
+/// `__bench-client`: a process that looks states up at a service for a while.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BenchClient {
+    /// The service's namespace.
+    pub namespace: String,
+    /// The world it serves.
+    pub world: String,
+    /// How long to ask, seconds.
+    pub seconds: f64,
+    /// States per request.
+    pub batch: usize,
+}
+
+/// `__bench-client ...`.
+pub fn bench_client(b: &BenchClient) -> Vec<String> {
+    vec![
+        "__bench-client".into(),
+        "--namespace".into(),
+        b.namespace.clone(),
+        "--world".into(),
+        b.world.clone(),
+        "--seconds".into(),
+        b.seconds.to_string(),
+        "--batch".into(),
+        b.batch.to_string(),
+    ]
+}
+
+/// `__remote-peer --listen ADDR`: the far end of `bench --remote`.
+pub fn remote_peer(listen: &str) -> Vec<String> {
+    vec![
+        "__remote-peer".into(),
+        "--listen".into(),
+        listen.to_string(),
+    ]
+}
+
+/// `__pingpong PATH`: a datagram echo on a socket path.
+pub fn pingpong(path: &Path) -> Vec<String> {
+    vec!["__pingpong".into(), path.display().to_string()]
 }
 
 /// The `train` flags of an intrinsic form with the experiment's beta, if it sets one.

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use clap::Parser;
-use fulcrum_run::argv::{self, BridgeConnect, BridgeListen, ChildKind, TrainJob, Zenoh};
+use fulcrum_run::argv::{self, BridgeConnect, BridgeListen, ChildKind, NewRun, TrainJob, Zenoh};
 use fulcrum_run::child::ChildRequest;
 
 use super::{Cli, Command};
@@ -118,12 +118,13 @@ fn both_bridges_get_every_setting() {
 
 #[test]
 fn an_experiments_runs_parse_as_train_requests() {
-    let job = TrainJob::New {
+    let job = TrainJob::New(NewRun {
         world: "exp1-tree-slip".into(),
         seed: Some(9),
         steps: Some(499_712),
-        actors: 1,
-        envs_per_actor: 8,
+        actors: Some(1),
+        envs_per_actor: Some(8),
+        checkpoint_every: Some(25),
         out: Some(PathBuf::from("/e/runs/additive/seed-9")),
         flags: vec![
             "--intrinsic".into(),
@@ -131,13 +132,14 @@ fn an_experiments_runs_parse_as_train_requests() {
             "--empowerment-model".into(),
             "deterministic".into(),
         ],
-    };
+    });
     match parse(argv::train(&job)) {
         Command::Train(t) => {
             let r = t.request().unwrap();
             assert_eq!(r.world.as_deref(), Some("exp1-tree-slip"));
             assert_eq!((r.seed, r.steps), (Some(9), Some(499_712)));
             assert_eq!((r.actors, r.envs_per_actor), (Some(1), Some(8)));
+            assert_eq!(r.checkpoint_every, Some(25));
             assert_eq!(r.out, Some(PathBuf::from("/e/runs/additive/seed-9")));
             assert_eq!(
                 r.intrinsic,
@@ -162,15 +164,16 @@ fn every_arm_is_train_flags() {
     use fulcrum_shared::intrinsic::Intrinsic;
     for name in argv::ARMS.split(", ") {
         let flags = argv::arm_flags(name, "potential", Some(0.25)).unwrap();
-        let job = TrainJob::New {
+        let job = TrainJob::New(NewRun {
             world: "room".into(),
             seed: None,
             steps: None,
-            actors: 1,
-            envs_per_actor: 8,
+            actors: Some(1),
+            envs_per_actor: Some(8),
+            checkpoint_every: None,
             out: None,
             flags,
-        };
+        });
         let r = match parse(argv::train(&job)) {
             Command::Train(t) => t.request().unwrap_or_else(|e| panic!("{name}: {e}")),
             other => panic!("{other:?}"),
@@ -185,4 +188,80 @@ fn every_arm_is_train_flags() {
         assert_eq!(r.intrinsic, Some(want), "{name}");
     }
     assert_eq!(argv::arm_flags("bogus", "additive", None), None);
+}
+
+/// A run with train's defaults leaves every setting but its world, steps and directory
+/// to train.
+#[test]
+fn a_default_run_names_only_world_steps_and_directory() {
+    match parse(argv::train(&TrainJob::New(NewRun::new(
+        "exp1-tree",
+        16_384,
+        &PathBuf::from("/b/t"),
+    )))) {
+        Command::Train(t) => {
+            let r = t.request().unwrap();
+            assert_eq!(r.world.as_deref(), Some("exp1-tree"));
+            assert_eq!(r.steps, Some(16_384));
+            assert_eq!(r.out, Some(PathBuf::from("/b/t")));
+            assert_eq!((r.seed, r.actors, r.envs_per_actor), (None, None, None));
+            assert_eq!((r.checkpoint_every, r.intrinsic), (None, None));
+        }
+        other => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn the_benchs_helpers_parse() {
+    let e = argv::ExperimentWorlds {
+        worlds: "gen:20:seed=7".into(),
+        seeds: 2,
+        arms: vec!["baseline".into(), "horizon-potential".into()],
+        steps: 999_424,
+        out: PathBuf::from("/b/robust"),
+    };
+    match parse(argv::experiment_worlds(&e)) {
+        Command::Experiment(x) => {
+            assert_eq!(x.worlds.as_deref(), Some("gen:20:seed=7"));
+            assert_eq!(x.seeds, 2);
+            assert_eq!(x.arms, "baseline,horizon-potential");
+            assert_eq!(x.steps, Some(999_424));
+            assert_eq!(x.out, Some(PathBuf::from("/b/robust")));
+        }
+        other => panic!("{other:?}"),
+    }
+    match parse(argv::serve_world("exp2", "bench.1")) {
+        Command::Serve(s) => {
+            assert_eq!(s.world.as_deref(), Some("exp2"));
+            assert_eq!(s.namespace, "bench.1");
+            assert_eq!(s.run, None);
+        }
+        other => panic!("{other:?}"),
+    }
+    let c = argv::BenchClient {
+        namespace: "bench.2".into(),
+        world: "exp3".into(),
+        seconds: 1.5,
+        batch: 256,
+    };
+    match parse(argv::bench_client(&c)) {
+        Command::BenchClient {
+            namespace,
+            world,
+            seconds,
+            batch,
+        } => assert_eq!(
+            (namespace, world, seconds, batch),
+            ("bench.2".into(), "exp3".into(), 1.5, 256)
+        ),
+        other => panic!("{other:?}"),
+    }
+    match parse(argv::remote_peer("127.0.0.1:7447")) {
+        Command::RemotePeer { listen } => assert_eq!(listen, "127.0.0.1:7447"),
+        other => panic!("{other:?}"),
+    }
+    match parse(argv::pingpong(&PathBuf::from("/tmp/p s"))) {
+        Command::PingPong { path } => assert_eq!(path, PathBuf::from("/tmp/p s")),
+        other => panic!("{other:?}"),
+    }
 }

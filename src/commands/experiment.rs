@@ -138,15 +138,16 @@ fn request(
     let mut steps = 0;
     let mut world_name = String::new();
     for arm in arms {
-        let argv = argv::train(&argv::TrainJob::New {
+        let argv = argv::train(&argv::TrainJob::New(argv::NewRun {
             world: world.to_string(),
             seed: None,
             steps: a.steps,
-            actors: a.actors,
-            envs_per_actor: a.envs_per_actor,
+            actors: Some(a.actors),
+            envs_per_actor: Some(a.envs_per_actor),
+            checkpoint_every: None,
             out: None,
             flags: [&arm.args[..], &a.train_args[..]].concat(),
-        });
+        }));
         let parsed = TrainOnly::try_parse_from(&argv).or_else(|e| {
             let msg = e.to_string();
             let first = msg

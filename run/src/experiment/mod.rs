@@ -178,15 +178,16 @@ fn train_args(spec: &Spec, arm: &Arm, job: &Job, resume: bool) -> Vec<String> {
     crate::argv::train(&if resume {
         crate::argv::TrainJob::Resume(job.dir.clone())
     } else {
-        crate::argv::TrainJob::New {
+        crate::argv::TrainJob::New(crate::argv::NewRun {
             world: spec.world.clone(),
             seed: Some(job.seed),
             steps: Some(spec.steps),
-            actors: spec.actors,
-            envs_per_actor: spec.envs_per_actor,
+            actors: Some(spec.actors),
+            envs_per_actor: Some(spec.envs_per_actor),
+            checkpoint_every: None,
             out: Some(job.dir.clone()),
             flags: [&arm.args[..], &spec.extra[..]].concat(),
-        }
+        })
     })
 }
 

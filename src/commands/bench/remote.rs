@@ -175,7 +175,7 @@ pub(super) fn run(addr: Option<&str>, quick: bool, figs: &mut Vec<Figure>) -> Re
                 .port();
             let a = format!("127.0.0.1:{port}");
             let mut child = std::process::Command::new(std::env::current_exe()?)
-                .args(["__remote-peer", "--listen", &a])
+                .args(fulcrum_run::argv::remote_peer(&a))
                 .stdout(std::process::Stdio::piped())
                 .stdin(std::process::Stdio::null())
                 .spawn()

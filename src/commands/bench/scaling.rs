@@ -13,6 +13,7 @@ use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
+use fulcrum_run::argv::{NewRun, TrainJob};
 use fulcrum_shared::generate::{generate, GenParams};
 use fulcrum_shared::{parse_world, ObjectSet};
 
@@ -58,20 +59,12 @@ fn training(plots: &Path, figs: &mut Vec<Figure>) -> Result<()> {
             ));
             let steps = UPDATES * (a * e * 128) as u64;
             let t0 = Instant::now();
-            let (sps, _) = super::training::train_sps(
-                &[
-                    "exp1-tree",
-                    "--steps",
-                    &steps.to_string(),
-                    "--actors",
-                    &a.to_string(),
-                    "--envs-per-actor",
-                    &e.to_string(),
-                    "--checkpoint-every",
-                    "1000",
-                ],
-                &dir,
-            )?;
+            let (sps, _) = super::training::train_sps(&TrainJob::New(NewRun {
+                actors: Some(a),
+                envs_per_actor: Some(e),
+                checkpoint_every: Some(1000),
+                ..NewRun::new("exp1-tree", steps, &dir)
+            }))?;
             let wall = t0.elapsed().as_secs_f64();
             let (m, s) = median_std(sps);
             eprintln!("scaling: {a} actors x {e} worlds: {m:.0} steps/s ({wall:.1} s)");

@@ -17,7 +17,7 @@ pub(super) struct ServeChild(std::process::Child);
 impl ServeChild {
     pub(super) fn start(world: &str, ns: &str) -> Result<ServeChild> {
         let mut cmd = std::process::Command::new(std::env::current_exe()?);
-        cmd.args(["serve", world, "--namespace", ns])
+        cmd.args(fulcrum_run::argv::serve_world(world, ns))
             .stderr(std::process::Stdio::null());
         match spawn_until_ready(cmd, "fulcrum serve", None)? {
             Ready::Ready(child, (), _) => Ok(ServeChild(child)),
@@ -150,17 +150,14 @@ fn throughput(
     let kids: Vec<std::process::Child> = (0..2)
         .map(|_| {
             std::process::Command::new(&exe)
-                .args([
-                    "__bench-client",
-                    "--namespace",
-                    ns,
-                    "--world",
-                    world,
-                    "--seconds",
-                    &secs.to_string(),
-                    "--batch",
-                    "256",
-                ])
+                .args(fulcrum_run::argv::bench_client(
+                    &fulcrum_run::argv::BenchClient {
+                        namespace: ns.to_string(),
+                        world: world.to_string(),
+                        seconds: secs,
+                        batch: 256,
+                    },
+                ))
                 .stdout(std::process::Stdio::piped())
                 .spawn()
         })
@@ -338,8 +335,7 @@ pub(super) fn pingpong_p50(rounds: usize, gap: bool) -> Result<f64> {
     let _ = std::fs::remove_file(&theirs);
     let _ = std::fs::remove_file(&ours);
     let mut child = std::process::Command::new(std::env::current_exe()?)
-        .arg("__pingpong")
-        .arg(&theirs)
+        .args(fulcrum_run::argv::pingpong(&theirs))
         .spawn()?;
     let sock = std::os::unix::net::UnixDatagram::bind(&ours)?;
     let t0 = Instant::now();

@@ -4,6 +4,7 @@
 use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
+use fulcrum_run::argv::{self, NewRun, TrainJob};
 use fulcrum_shared::{load_world, View, World};
 
 use super::{median_ms, Figure};
@@ -200,33 +201,31 @@ pub(super) fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
     Ok(())
 }
 
-/// `fulcrum train ARGS --out DIR`, no input, output to nowhere.
-pub(super) fn train_command(args: &[&str], dir: &std::path::Path) -> Result<std::process::Command> {
+/// `fulcrum train ...` as the job says, no input, output to nowhere.
+pub(super) fn train_command(job: &TrainJob) -> Result<std::process::Command> {
     let mut c = std::process::Command::new(std::env::current_exe()?);
-    c.arg("train")
-        .args(args)
-        .arg("--out")
-        .arg(dir)
+    c.args(argv::train(job))
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::null());
     Ok(c)
 }
 
-/// Runs `fulcrum train ARGS --out DIR` (then removes DIR) and returns the env steps per
+/// Runs the job (a new run in DIR, then removes DIR) and returns the env steps per
 /// second of each update after the first (which pays for start-up), and the run's
 /// resolved configuration.
-pub(super) fn train_sps(
-    args: &[&str],
-    dir: &std::path::Path,
-) -> Result<(Vec<f64>, fulcrum_shared::config::RunConfig)> {
+pub(super) fn train_sps(job: &TrainJob) -> Result<(Vec<f64>, fulcrum_shared::config::RunConfig)> {
+    let TrainJob::New(NewRun { out: Some(dir), .. }) = job else {
+        anyhow::bail!("a bench run needs a new run directory");
+    };
+    let dir = dir.as_path();
     let _ = std::fs::remove_dir_all(dir);
-    let out = train_command(args, dir)?
+    let out = train_command(job)?
         .stderr(std::process::Stdio::piped())
         .output()?;
     ensure!(
         out.status.success(),
-        "fulcrum train {} failed: {}",
-        args.join(" "),
+        "fulcrum {} failed: {}",
+        argv::train(job).join(" "),
         String::from_utf8_lossy(&out.stderr)
     );
     let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv"))?;
@@ -246,15 +245,15 @@ pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let dir = std::env::temp_dir().join(format!("fulcrum-bench-train-{}", std::process::id()));
     // Whole updates of this machine's default batch (actors = cores - 1, 8 worlds, 128 steps).
     let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
-    let steps = (if quick { 16 } else { 100 } * batch).to_string();
+    let steps = if quick { 16 } else { 100 } * batch;
     let pairs = if quick { 1 } else { 3 };
     let (mut plain, mut noisy) = (Vec::new(), Vec::new());
     let mut cfg = None;
     for _ in 0..pairs {
-        let (sps, c) = train_sps(&["exp1-tree", "--steps", &steps], &dir)?;
+        let (sps, c) = train_sps(&TrainJob::New(NewRun::new("exp1-tree", steps, &dir)))?;
         plain.extend(sps);
         cfg = Some(c);
-        noisy.extend(train_sps(&["exp1-tree-slip", "--steps", &steps], &dir)?.0);
+        noisy.extend(train_sps(&TrainJob::New(NewRun::new("exp1-tree-slip", steps, &dir)))?.0);
     }
     let cfg = cfg.context("no run")?;
     let median = |v: &mut Vec<f64>| {
@@ -294,11 +293,15 @@ pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
 /// success rate, pooled over 10 updates as `fulcrum experiment` pools it, reaches 0.9;
 /// and the env steps by then. The run is then stopped (SIGINT, as a user would). `None`
 /// when the budget ends first.
-pub(super) fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<(f64, f64)>> {
+pub(super) fn solve_once(job: &TrainJob) -> Result<Option<(f64, f64)>> {
     use fulcrum_run::stats::{smooth, steps_to, Point};
+    let TrainJob::New(NewRun { out: Some(dir), .. }) = job else {
+        anyhow::bail!("a bench run needs a new run directory");
+    };
+    let dir = dir.as_path();
     let _ = std::fs::remove_dir_all(dir);
     let t0 = Instant::now();
-    let mut child = train_command(args, dir)?
+    let mut child = train_command(job)?
         .stderr(std::process::Stdio::null())
         .spawn()?;
     let metrics = dir.join("metrics.csv");
@@ -310,7 +313,11 @@ pub(super) fn solve_once(args: &[&str], dir: &std::path::Path) -> Result<Option<
             break Some((t0.elapsed().as_secs_f64(), steps));
         }
         if let Some(status) = done {
-            ensure!(status.success(), "fulcrum train {} failed", args.join(" "));
+            ensure!(
+                status.success(),
+                "fulcrum {} failed",
+                argv::train(job).join(" ")
+            );
             break None;
         }
         std::thread::sleep(std::time::Duration::from_millis(10));
@@ -337,19 +344,13 @@ pub(super) fn time_to_solve(figs: &mut Vec<Figure>) -> Result<()> {
     let (mut secs, mut env) = (Vec::new(), Vec::new());
     let mut solved = 0;
     for seed in 1..=5 {
-        let seed = seed.to_string();
-        let steps = steps.to_string();
         let t0 = Instant::now();
-        let args = [
-            "exp1-tree",
-            "--seed",
-            &seed,
-            "--steps",
-            &steps,
-            "--actors",
-            "1",
-        ];
-        match solve_once(&args, &dir)? {
+        let job = TrainJob::New(NewRun {
+            seed: Some(seed),
+            actors: Some(1),
+            ..NewRun::new("exp1-tree", steps, &dir)
+        });
+        match solve_once(&job)? {
             Some((s, e)) => {
                 solved += 1;
                 secs.push(s);
@@ -404,11 +405,13 @@ pub(super) fn robustness(figs: &mut Vec<Figure>) -> Result<()> {
     let _ = std::fs::remove_dir_all(&dir);
     let t0 = Instant::now();
     let status = std::process::Command::new(std::env::current_exe()?)
-        .args(["experiment", "--worlds", ROBUST_SET, "--seeds", "1"])
-        .args(["--arms", "horizon-potential", "--steps"])
-        .arg(ROBUST_STEPS.to_string())
-        .arg("--out")
-        .arg(&dir)
+        .args(argv::experiment_worlds(&argv::ExperimentWorlds {
+            worlds: ROBUST_SET.into(),
+            seeds: 1,
+            arms: vec!["horizon-potential".into()],
+            steps: ROBUST_STEPS,
+            out: dir.clone(),
+        }))
         .stdin(std::process::Stdio::null())
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::null())
