@@ -13,8 +13,34 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 mod cli;
 mod commands;
 
+/// A command line clap refuses. A value that does not parse (`--view crop:0`,
+/// `--beta nan`) is one sentence naming the flag, exit 2, as every other bad input;
+/// clap's own messages (help, version, a missing or unknown argument, which show the
+/// usage they need) are printed as clap prints them.
+fn bad_command_line(e: clap::Error) -> ExitCode {
+    use clap::error::ErrorKind;
+    if matches!(
+        e.kind(),
+        ErrorKind::ValueValidation | ErrorKind::InvalidValue
+    ) {
+        // The message and its possible values: the lines before the first blank one.
+        let text = e.render().to_string();
+        let lines: Vec<&str> = text
+            .lines()
+            .take_while(|l| !l.trim().is_empty())
+            .map(str::trim)
+            .collect();
+        eprintln!("fulcrum: {}", lines.join(" ").trim_start_matches("error: "));
+        return ExitCode::from(2);
+    }
+    e.exit()
+}
+
 fn main() -> ExitCode {
-    let cli = cli::Cli::parse();
+    let cli = match cli::Cli::try_parse() {
+        Ok(cli) => cli,
+        Err(e) => return bad_command_line(e),
+    };
     if !matches!(cli.command, cli::Command::Serve(_)) {
         // A command whose output is cut short (`fulcrum ... | head`) ends quietly, as
         // Unix tools do, instead of panicking on the broken pipe. The service keeps

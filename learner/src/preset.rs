@@ -3,7 +3,8 @@
 use fulcrum_shared::ppo_config::PpoConfig;
 
 /// Named sets of PPO settings (`train --ppo-preset`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
 pub enum Preset {
     /// CleanRL's `ppo.py` with fulcrum's advantage floor (the default).
     Fulcrum,

@@ -9,6 +9,7 @@
 //!
 //! | module | what it owns |
 //! |---|---|
+//! | [`settings`] | a run's settings, each declared once: the fixed ones and those a resume may change |
 //! | [`plan`] | a request -> a checked `RunConfig`, its world and run directory |
 //! | [`lock`] | one invocation per run or experiment directory (`flock` on `.lock`) |
 //! | [`sizes`] | the shared memory a run needs, checked before it starts |
@@ -40,6 +41,7 @@ pub mod process;
 pub mod progress;
 pub mod record;
 pub mod restart;
+pub mod settings;
 pub mod sizes;
 pub mod stats;
 pub mod supervisor;

@@ -17,79 +17,49 @@ use fulcrum_shared::intrinsic::Intrinsic;
 use fulcrum_shared::ppo_config::PpoConfig;
 use fulcrum_shared::World;
 
-use crate::error::bad;
+use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
+use crate::settings::{Fixed, Resumable};
 use fulcrum_empowerment::request::objects_or_default;
-use fulcrum_shared::{load_world, View};
+use fulcrum_shared::load_world;
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]
 pub struct TrainRequest {
     /// A built-in world's name or a world file (default: the first built-in world).
     pub world: Option<String>,
-    /// Intrinsic reward weight.
-    pub beta: Option<f64>,
-    /// The intrinsic reward form's name (`none` for plain PPO).
-    pub intrinsic: Option<Intrinsic>,
-    /// `switch` (held / not-held horizons) or `fixed` (one horizon).
-    pub horizon_mode: Option<HorizonMode>,
-    /// The dynamics E is computed on (`exact` or `deterministic`).
-    pub empowerment_model: Option<EmpowermentModel>,
-    /// Two value heads (extrinsic and intrinsic returns apart).
-    pub intrinsic_value_head: bool,
-    /// Discount of the intrinsic value head.
-    pub gamma_int: Option<f32>,
-    /// Whether actions that cannot change anything are masked out.
-    pub action_mask: bool,
-    /// What of the map the policy sees.
-    pub view: Option<View>,
-    /// Seed of weights, sampling and worlds.
-    pub seed: Option<u64>,
-    /// Env steps in all.
-    pub steps: Option<u64>,
+    /// The settings a run keeps from start to end.
+    pub fixed: Fixed,
+    /// The settings a resume may change.
+    pub resumable: Resumable,
     /// The run directory of a new run (default `runs/<run id>`).
     pub out: Option<PathBuf>,
     /// A run directory to continue.
     pub resume: Option<PathBuf>,
-    /// Actor processes.
-    pub actors: Option<usize>,
-    /// Worlds per actor.
-    pub envs_per_actor: Option<usize>,
-    /// Steps per chunk.
-    pub steps_per_chunk: Option<usize>,
-    /// Threads of the learner.
-    pub learner_threads: Option<usize>,
-    /// Hidden units.
-    pub hidden: Option<usize>,
-    /// The empowerment channel's tool (`auto`, `all` or a tool).
-    pub tool: Option<ChannelTool>,
-    /// The empowerment channel's objects, comma separated.
-    pub objects: Option<String>,
-    /// Horizon where the tool is not held.
-    pub horizon_unequipped: Option<u32>,
-    /// Horizon where it is held.
-    pub horizon_equipped: Option<u32>,
-    /// Updates an actor's weights may lag behind.
-    pub max_policy_lag: Option<u64>,
-    /// A checkpoint every this many updates.
-    pub checkpoint_every: Option<u64>,
-    /// A greedy evaluation every this many updates (0 = never).
-    pub eval_every: Option<u64>,
-    /// Episodes of each periodic evaluation.
-    pub eval_episodes: Option<usize>,
-    /// Adam's learning rate.
-    pub lr: Option<f64>,
-    /// PPO epochs per update.
-    pub epochs: Option<usize>,
-    /// Minibatches per epoch.
-    pub minibatches: Option<usize>,
-    /// The PPO preset.
-    pub ppo_preset: Option<Preset>,
     /// Actors on other hosts join through a bridge.
     pub remote: bool,
     /// Seconds without chunks from a remote host before the learner gives up on it.
     pub stall_timeout: Option<f64>,
+}
+
+impl TrainRequest {
+    /// Refuses what only the request's flags can get wrong: contradicting settings, and
+    /// fixed settings given with `--resume` (each named by its flag).
+    pub fn check(&self) -> Result<(), BadRequest> {
+        self.fixed.check()?;
+        if let Some(dir) = &self.resume {
+            let changed = self.fixed.given();
+            if !changed.is_empty() {
+                return Err(BadRequest(format!(
+                    "--resume continues a run with the settings in {}; {} cannot be changed (start a new run instead)",
+                    dir.join("config.toml").display(),
+                    changed.join(", ")
+                )));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// A planned run: ready to start.
@@ -157,6 +127,8 @@ pub fn run_dir(dir: &Path) -> Result<RunPaths> {
 /// A run directory's configuration with what may change on a resume changed, checked
 /// against its world and its checkpoint.
 fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
+    a.check()?;
+    let r = &a.resumable;
     {
         let paths = run_dir(dir)?;
         let lock = lock_for_run(dir)?;
@@ -171,23 +143,23 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
                 ));
             }
         }
-        if let Some(s) = a.steps {
+        if let Some(s) = r.steps {
             cfg.total_steps = s;
             whole_updates(&cfg)?;
         }
-        if let Some(k) = a.checkpoint_every {
+        if let Some(k) = r.checkpoint_every {
             cfg.checkpoint_every = k;
         }
-        if let Some(k) = a.eval_every {
+        if let Some(k) = r.eval_every {
             cfg.eval_every = k;
         }
-        if let Some(n) = a.eval_episodes {
+        if let Some(n) = r.eval_episodes {
             cfg.eval_episodes = n;
         }
-        if let Some(l) = a.max_policy_lag {
+        if let Some(l) = r.max_policy_lag {
             cfg.max_policy_lag = l;
         }
-        if let Some(t) = a.learner_threads {
+        if let Some(t) = r.learner_threads {
             cfg.learner_threads = t;
         }
         if a.remote {
@@ -238,8 +210,10 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
 /// The resolved and checked configuration of a new run, and its world: no file is
 /// written and no process started (an experiment checks every run with it before
 /// starting any).
-pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
-    let spec = a.world.clone().unwrap_or_default();
+pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
+    request.check()?;
+    let (a, r) = (&request.fixed, &request.resumable);
+    let spec = request.world.clone().unwrap_or_default();
     let w = load_world(&spec)?;
     // A file path is stored absolute so that a resume from elsewhere finds it.
     let world_spec =
@@ -251,10 +225,10 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             spec.clone()
         };
     // The default form is potential-based (`Intrinsic::default`): it cannot trap.
-    let form = a.intrinsic.unwrap_or_default();
+    let form = a.form().unwrap_or_default();
     let mode = a.horizon_mode.unwrap_or_default();
     let fixed = mode == HorizonMode::Fixed;
-    let preset = a.ppo_preset.unwrap_or(Preset::Fulcrum);
+    let preset = a.preset().unwrap_or(Preset::Fulcrum);
     let n = cores();
     let actors = a.actors.unwrap_or(n.saturating_sub(1).max(1));
     let seed = a.seed.unwrap_or(1);
@@ -268,14 +242,14 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
         world_name: w.name.clone(),
         world_hash: format!("{:016x}", w.content_hash()),
         seed,
-        total_steps: a.steps.unwrap_or(500_000),
+        total_steps: r.steps.unwrap_or(500_000),
         actors,
         envs_per_actor: a.envs_per_actor.unwrap_or(8),
         steps_per_chunk: a
             .steps_per_chunk
             .or(preset.steps_per_chunk())
             .unwrap_or(128),
-        learner_threads: a.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
+        learner_threads: r.learner_threads.unwrap_or(n.saturating_sub(actors).max(1)),
         hidden: a.hidden.unwrap_or(64),
         // horizon-potential's default needs the potential's maximum: set below, once the
         // settings are checked.
@@ -295,13 +269,13 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
             (true, None) => a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
             (_, h) => h.unwrap_or(e.horizon_equipped),
         },
-        max_policy_lag: a.max_policy_lag.unwrap_or(0),
-        checkpoint_every: a.checkpoint_every.unwrap_or(10),
-        eval_every: a.eval_every.unwrap_or(0),
-        eval_episodes: a.eval_episodes.unwrap_or(10),
-        remote: a.remote,
-        stall_timeout_s: a.stall_timeout.unwrap_or(10.0),
-        action_mask: a.action_mask,
+        max_policy_lag: r.max_policy_lag.unwrap_or(0),
+        checkpoint_every: r.checkpoint_every.unwrap_or(10),
+        eval_every: r.eval_every.unwrap_or(0),
+        eval_episodes: r.eval_episodes.unwrap_or(10),
+        remote: request.remote,
+        stall_timeout_s: request.stall_timeout.unwrap_or(10.0),
+        action_mask: a.action_mask(),
         view: a.view.unwrap_or_default(),
         intrinsic_value_head: a.intrinsic_value_head,
         gamma_int: a.gamma_int.unwrap_or(0.99),
@@ -317,7 +291,7 @@ pub fn plan(a: &TrainRequest) -> Result<(RunConfig, World)> {
     };
     let mut cfg = cfg;
     cfg.check()?;
-    if a.steps.is_some() {
+    if r.steps.is_some() {
         whole_updates(&cfg)?;
     }
     crate::sizes::check_memory(&cfg, &w)?;

@@ -137,16 +137,16 @@ fn an_experiments_runs_parse_as_train_requests() {
         Command::Train(t) => {
             let r = t.request().unwrap();
             assert_eq!(r.world.as_deref(), Some("exp1-tree-slip"));
-            assert_eq!((r.seed, r.steps), (Some(9), Some(499_712)));
-            assert_eq!((r.actors, r.envs_per_actor), (Some(1), Some(8)));
-            assert_eq!(r.checkpoint_every, Some(25));
+            assert_eq!((r.fixed.seed, r.resumable.steps), (Some(9), Some(499_712)));
+            assert_eq!((r.fixed.actors, r.fixed.envs_per_actor), (Some(1), Some(8)));
+            assert_eq!(r.resumable.checkpoint_every, Some(25));
             assert_eq!(r.out, Some(PathBuf::from("/e/runs/additive/seed-9")));
             assert_eq!(
-                r.intrinsic,
+                r.fixed.form(),
                 Some(fulcrum_shared::intrinsic::Intrinsic::HorizonPotential)
             );
             assert_eq!(
-                r.empowerment_model,
+                r.fixed.empowerment_model,
                 Some(fulcrum_shared::config::EmpowermentModel::Deterministic)
             );
         }
@@ -185,7 +185,7 @@ fn every_arm_is_train_flags() {
             "horizon-potential-deterministic" => Intrinsic::HorizonPotential,
             form => form.parse().unwrap(),
         };
-        assert_eq!(r.intrinsic, Some(want), "{name}");
+        assert_eq!(r.fixed.form(), Some(want), "{name}");
     }
     assert_eq!(argv::arm_flags("bogus", "additive", None), None);
 }
@@ -202,10 +202,10 @@ fn a_default_run_names_only_world_steps_and_directory() {
         Command::Train(t) => {
             let r = t.request().unwrap();
             assert_eq!(r.world.as_deref(), Some("exp1-tree"));
-            assert_eq!(r.steps, Some(16_384));
+            assert_eq!(r.resumable.steps, Some(16_384));
             assert_eq!(r.out, Some(PathBuf::from("/b/t")));
-            assert_eq!((r.seed, r.actors, r.envs_per_actor), (None, None, None));
-            assert_eq!((r.checkpoint_every, r.intrinsic), (None, None));
+            assert_eq!(r.fixed, fulcrum_run::settings::Fixed::default());
+            assert_eq!(r.resumable.checkpoint_every, None);
         }
         other => panic!("{other:?}"),
     }

@@ -161,7 +161,7 @@ fn request(
         })?;
         if parsed.train.resume.is_some()
             || parsed.train.out.is_some()
-            || parsed.train.seed.is_some()
+            || parsed.train.fixed.seed.is_some()
         {
             return bad("the flags after -- may not set --resume, --out or --seed: the experiment chooses them");
         }

@@ -451,11 +451,11 @@ fn bad_training_settings_are_refused_before_anything_starts() {
         ),
         (
             vec!["room", "--view", "crop:0", "--out", d],
-            "--view: unknown view 'crop:0' (views: full, or crop:R",
+            "'--view <full|crop:R>': unknown view 'crop:0' (views: full, or crop:R",
         ),
         (
             vec!["room", "--view", "window", "--out", d],
-            "--view: unknown view 'window'",
+            "'--view <full|crop:R>': unknown view 'window'",
         ),
         (
             vec![

@@ -14,7 +14,7 @@ use fulcrum_shared::World;
 use iceoryx2::prelude::*;
 
 use super::{assert_contiguous, finish, train, wait_rows, SMALL};
-use crate::util::{pids_with, TempDir};
+use crate::util::{pids_with, signal, wait_until, TempDir};
 
 /// The namespace of the learner running for the run directory `d`.
 fn learner_namespace(d: &str) -> String {
@@ -70,16 +70,19 @@ fn plausible_chunk(w: &World, ns: &str, layout: &ChunkLayout) -> (ChunkHeader, V
 }
 
 #[test]
-fn poisoned_chunks_are_refused_counted_and_the_run_finishes() {
+fn poisoned_chunks_are_refused_and_counted_while_the_run_goes_on() {
     fulcrum_empowerment::service::quiet_ipc_logs();
     let dir = TempDir::fresh("poison-chunk");
     let d = dir.to_str().unwrap();
-    // Asynchronous PPO with a large lag: a chunk of policy version 0 is fresh enough to
-    // be trained on, so a bad one that passed the check would reach the update.
+    // Asynchronous PPO with a lag no run reaches: a chunk of policy version 0 is fresh
+    // enough to be trained on whenever it comes, so a bad one that passed the check would
+    // reach the update. The run is far longer than the test: it is stopped with SIGINT
+    // once the chunks have been judged, so how fast this machine trains does not matter.
     let c = train(
         &[
-            &["room", "--actors", "1", "--steps", "256000", "--out", d][..],
-            &["--no-empowerment", "--max-policy-lag", "1000"],
+            &["room", "--actors", "1", "--steps", "25600000", "--out", d][..],
+            &["--no-empowerment", "--max-policy-lag", "1000000000"],
+            &["--checkpoint-every", "1000000"],
             SMALL,
         ]
         .concat(),
@@ -124,11 +127,25 @@ fn poisoned_chunks_are_refused_counted_and_the_run_finishes() {
         // Delivered to the learner's subscriber (the run is still going).
         assert_eq!(s.send().unwrap(), 1);
     }
-    let (status, err, _) = finish(c, Duration::from_secs(120));
-    assert!(status.success(), "{err}");
+    // The learner takes the chunks in order: once it has refused two, the clean one
+    // (sent last) has been judged too; a hundred more updates and the run is stopped.
+    let mut judged = None;
+    wait_until(Duration::from_secs(60), "two refused chunks", || {
+        let rows = read_metrics(&dir.join("metrics.csv")).unwrap_or_default();
+        if judged.is_none() {
+            judged = rows
+                .iter()
+                .find(|r| r.dropped_chunks >= 2)
+                .map(|r| r.update);
+        }
+        judged.is_some_and(|u| rows.last().is_some_and(|r| r.update >= u + 100))
+    });
+    signal(c.id(), "-INT");
+    let (status, err, _) = finish(c, Duration::from_secs(60));
+    assert_eq!(status.code(), Some(130), "{err}");
     let err = without_colours(&err);
     let rows = read_metrics(&dir.join("metrics.csv")).unwrap();
-    assert_contiguous(&rows, 2000, 128);
+    assert_contiguous(&rows, rows.len() as u64, 128);
     assert_eq!(
         rows.last().unwrap().dropped_chunks,
         2,
