@@ -49,31 +49,36 @@ def times(arm):
     return [s["steps_to_threshold"] for s in arm["per_seed"]]
 
 
-for w, budget in WORLDS:
-    s = json.load(open(os.path.join(ROOT, "docs", "results", f"noisy-{w}-summary.json")))
-    arms = {a["name"]: a for a in s["arms"]}
-    comps = {c["arm"]: c for c in s["comparisons"]}
-    for name, c in comps.items():
-        mine = log_rank(times(arms[name]), times(arms["baseline"]))
-        assert abs(mine[1] - c["log_rank"]["p"]) < 1e-9, (w, name, mine, c["log_rank"])
-    ps = sorted((comps[f]["log_rank"]["p"], f) for f in FORMS)
-    holm, run = {}, 0.0
-    for i, (p, f) in enumerate(ps):
-        run = max(run, min(1.0, (len(ps) - i) * p))
-        holm[f] = run
-    print(f"\n{w} (budget {budget}, 10 seeds)\n")
-    print("| arm | solved | IQM steps to 0.9 (95% CI) | median | log-rank p vs baseline | Holm (3 arms) |")
-    print("|---|---|---|---|---|---|")
-    for a in s["arms"]:
-        c = comps.get(a["name"])
-        ci = a["iqm_ci"]
-        iq = f"{st(a['iqm_steps'])} ({st(ci[0])} - {st(ci[1])})" if ci else "-"
-        lr = "-"
-        if c:
-            lr = pt(c["log_rank"]["p"])
-            lr += " (faster)" if c["log_rank"]["observed_a"] > c["log_rank"]["expected_a"] else " (slower)"
-        h = pt(holm[a["name"]]) if a["name"] in holm else "-"
-        print(f"| {a['name']} | {a['reached']}/{a['finished']} | {iq} | {st(a['median_steps'])} | {lr} | {h} |")
-    chi2, p, o, e = log_rank(times(arms["horizon-potential"]), times(arms["horizon-potential-deterministic"]))
-    faster = "exact faster" if o > e else "deterministic faster"
-    print(f"\nhorizon-potential (exact) against horizon-potential-deterministic: log-rank chi2 {chi2:.2f}, p {pt(p)} ({faster})")
+def main():
+    for w, budget in WORLDS:
+        s = json.load(open(os.path.join(ROOT, "docs", "results", f"noisy-{w}-summary.json")))
+        arms = {a["name"]: a for a in s["arms"]}
+        comps = {c["arm"]: c for c in s["comparisons"]}
+        for name, c in comps.items():
+            mine = log_rank(times(arms[name]), times(arms["baseline"]))
+            assert abs(mine[1] - c["log_rank"]["p"]) < 1e-9, (w, name, mine, c["log_rank"])
+        ps = sorted((comps[f]["log_rank"]["p"], f) for f in FORMS)
+        holm, run = {}, 0.0
+        for i, (p, f) in enumerate(ps):
+            run = max(run, min(1.0, (len(ps) - i) * p))
+            holm[f] = run
+        print(f"\n{w} (budget {budget}, 10 seeds)\n")
+        print("| arm | solved | IQM steps to 0.9 (95% CI) | median | log-rank p vs baseline | Holm (3 arms) |")
+        print("|---|---|---|---|---|---|")
+        for a in s["arms"]:
+            c = comps.get(a["name"])
+            ci = a["iqm_ci"]
+            iq = f"{st(a['iqm_steps'])} ({st(ci[0])} - {st(ci[1])})" if ci else "-"
+            lr = "-"
+            if c:
+                lr = pt(c["log_rank"]["p"])
+                lr += " (faster)" if c["log_rank"]["observed_a"] > c["log_rank"]["expected_a"] else " (slower)"
+            h = pt(holm[a["name"]]) if a["name"] in holm else "-"
+            print(f"| {a['name']} | {a['reached']}/{a['finished']} | {iq} | {st(a['median_steps'])} | {lr} | {h} |")
+        chi2, p, o, e = log_rank(times(arms["horizon-potential"]), times(arms["horizon-potential-deterministic"]))
+        faster = "exact faster" if o > e else "deterministic faster"
+        print(f"\nhorizon-potential (exact) against horizon-potential-deterministic: log-rank chi2 {chi2:.2f}, p {pt(p)} ({faster})")
+
+
+if __name__ == "__main__":
+    main()

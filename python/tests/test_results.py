@@ -18,3 +18,13 @@ def test_the_noisy_worlds_tables_recompute_from_committed_data():
         check=True,
     ).stdout
     assert out == (ROOT / "docs" / "results" / "noisy-tables.md").read_text()
+
+
+def test_the_two_misses_table_recomputes_from_committed_data():
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "misses_table.py")],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout
+    assert out == (ROOT / "docs" / "results" / "misses-table.md").read_text()
