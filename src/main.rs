@@ -78,10 +78,10 @@ fn exit_code(e: &anyhow::Error) -> u8 {
     }
     let bad_input = |c: &(dyn std::error::Error + 'static)| {
         c.is::<fulcrum_run::BadRequest>()
-            || c.is::<fulcrum_shared::WorldError>()
-            || c.is::<fulcrum_shared::config::ConfigError>()
-            || c.is::<fulcrum_shared::DescribeError>()
-            || c.is::<fulcrum_shared::generate::GenError>()
+            || c.is::<fulcrum_world::WorldError>()
+            || c.is::<fulcrum_contracts::config::ConfigError>()
+            || c.is::<fulcrum_world::DescribeError>()
+            || c.is::<fulcrum_world::generate::GenError>()
             || c.is::<fulcrum_empowerment::EngineError>()
             || matches!(
                 c.downcast_ref::<ServiceError>(),

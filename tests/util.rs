@@ -130,5 +130,5 @@ pub fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
 
 /// Whether a child's line says it is ready (the child protocol's own reading).
 pub fn is_ready(line: &str) -> bool {
-    fulcrum_shared::lines::ChildLine::says_ready(line)
+    fulcrum_contracts::lines::ChildLine::says_ready(line)
 }

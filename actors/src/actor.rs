@@ -2,7 +2,7 @@
 //!
 //! An actor steps M worlds in lock-step (auto-reset), chooses actions with its own copy
 //! of the policy, and writes chunks of T steps straight into a loaned shared-memory
-//! sample (layout: `fulcrum_shared::traj`). Per chunk:
+//! sample (layout: `fulcrum_contracts::traj`). Per chunk:
 //!
 //! 1. take the newest weights (synchronous mode: wait until the learner has published
 //!    the version after the one of the last chunk);
@@ -11,7 +11,7 @@
 //!    worlds, record r_t, terminated/truncated, and s_{t+1}; the next-state values of
 //!    truncated episodes are computed in one batch at the end of the chunk;
 //! 3. E(s_{t+1}) comes from the empowerment service: the states are sent in batches of
-//!    up to [`fulcrum_shared::msg::MAX_BATCH`] as soon as they are collected, so the
+//!    up to [`fulcrum_contracts::msg::MAX_BATCH`] as soon as they are collected, so the
 //!    service answers while the actor steps on (pipelined), and the answers are
 //!    collected at the chunk's end. If the service fails, the chunk is held (never sent
 //!    without its intrinsic rewards) and the actor reconnects and asks again;
@@ -21,22 +21,22 @@
 //! Sampling is seeded per chunk from (run seed, actor, policy version, chunk), so a run
 //! resumed from a checkpoint draws the same actions as one that was never stopped. In a
 //! stochastic world the same generator draws each step's outcome
-//! ([`fulcrum_shared::World::env_step_drawn`]; none in a deterministic world), so the
+//! ([`fulcrum_world::World::env_step_drawn`]; none in a deterministic world), so the
 //! resumed run also meets the same slips and failed tool uses.
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client};
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::intrinsic::{Intrinsic, Shaping};
-use fulcrum_shared::msg::{MAX_BATCH, MAX_IN_FLIGHT};
-use fulcrum_shared::traj::{
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::intrinsic::{Intrinsic, Shaping};
+use fulcrum_contracts::msg::{MAX_BATCH, MAX_IN_FLIGHT};
+use fulcrum_contracts::traj::{
     self, put_f32, ChunkHeader, ChunkLayout, ChunkPublisher, EnvRecord, PolicyFactory, Section,
     TrainNames, TrajFactory, WeightsSubscriber, ENV_BYTES,
 };
-use fulcrum_shared::{State, World};
+use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client};
+use fulcrum_world::{State, World};
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::BackpressureAction;
@@ -50,7 +50,7 @@ use crate::policy::Policy;
 use crate::resume::{reset_unknown_states, resume_records};
 use crate::service::{connect, pump};
 use crate::weights::WeightsIn;
-use fulcrum_shared::IpcError;
+use fulcrum_contracts::IpcError;
 
 /// Who this actor is.
 #[derive(Debug, Clone, Copy)]

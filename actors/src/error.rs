@@ -5,7 +5,7 @@
 pub enum ActorError {
     /// iceoryx2 failed.
     #[error(transparent)]
-    Ipc(#[from] fulcrum_shared::IpcError),
+    Ipc(#[from] fulcrum_contracts::IpcError),
     /// The empowerment service failed in a way retrying cannot fix.
     #[error("empowerment service: {0}")]
     Service(String),

@@ -6,7 +6,7 @@
 
 use std::sync::OnceLock;
 
-use fulcrum_shared::traj::{ChunkLayout, Section};
+use fulcrum_contracts::traj::{ChunkLayout, Section};
 
 /// The environment variable of the hook.
 pub const FAULT_BAD_CHUNK_ENV: &str = "FULCRUM_FAULT_BAD_CHUNK";

@@ -2,7 +2,7 @@
 //!
 //! Same math as `fulcrum_learner::net::Net::forward` (see its docs), one sample at a
 //! time, from the flat weights the learner publishes (the layout of
-//! [`fulcrum_shared::layout`]):
+//! [`fulcrum_contracts::layout`]):
 //!
 //! ```text
 //! z1     = b1 + sum_c E[c * G + glyph_c] + flags @ Wf      (H)
@@ -15,7 +15,7 @@
 //! allocation: on the paper's worlds a few microseconds per world, against tens of
 //! microseconds per candle op of the batched tensor path (measured in `fulcrum bench`).
 
-use fulcrum_shared::layout::{NetShape, Offsets};
+use fulcrum_contracts::layout::{NetShape, Offsets};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 
@@ -49,7 +49,7 @@ impl Policy {
         }
     }
 
-    /// Sample only the actions that [`fulcrum_shared::mask::action_mask`] allows in each
+    /// Sample only the actions that [`fulcrum_world::mask::action_mask`] allows in each
     /// observation (masked logits count as -inf: probability 0, never drawn).
     pub fn with_action_mask(mut self, on: bool) -> Policy {
         self.masked = on;
@@ -168,7 +168,7 @@ impl Policy {
     pub fn greedy(&mut self, glyphs: &[u8], flags: &[u8]) -> u8 {
         self.eval(glyphs, flags);
         let mask = if self.masked {
-            fulcrum_shared::mask::action_mask(flags)
+            fulcrum_world::mask::action_mask(flags)
         } else {
             u32::MAX
         };
@@ -214,7 +214,7 @@ impl Policy {
                 *v = self.value_int;
             }
             let mask = if self.masked {
-                fulcrum_shared::mask::action_mask(fl)
+                fulcrum_world::mask::action_mask(fl)
             } else {
                 u32::MAX
             };
@@ -323,7 +323,7 @@ mod masked_tests {
     use super::*;
     use candle_core::Device;
     use fulcrum_learner::net::{log_softmax, Net};
-    use fulcrum_shared::mask::action_mask;
+    use fulcrum_world::mask::action_mask;
     use rand::SeedableRng;
 
     /// With the mask, sampled actions are always allowed, and their log-probabilities are

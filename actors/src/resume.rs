@@ -1,7 +1,7 @@
 //! The worlds an actor resumes: its episode records from the run's checkpoint.
 //!
 //! A record is used only when it is one of the world's
-//! ([`fulcrum_shared::valid::check_record`]: the agent on the map and not in a wall,
+//! ([`fulcrum_contracts::valid::check_record`]: the agent on the map and not in a wall,
 //! boulder slots on the map or destroyed, a mode and inventory of the world, ...) and,
 //! where the run has an empowerment service, its state is in the world's state space
 //! (the service knows it; a state outside it would make every lookup fail). Any other
@@ -10,13 +10,13 @@
 
 use std::path::Path;
 
+use fulcrum_contracts::checkpoint;
+use fulcrum_contracts::layout::NetShape;
+use fulcrum_contracts::msg::{item, MAX_BATCH};
+use fulcrum_contracts::traj::{EnvRecord, ENV_BYTES};
+use fulcrum_contracts::valid::check_record;
 use fulcrum_empowerment::service::{Ask, Client};
-use fulcrum_shared::checkpoint;
-use fulcrum_shared::layout::NetShape;
-use fulcrum_shared::msg::{item, MAX_BATCH};
-use fulcrum_shared::traj::{EnvRecord, ENV_BYTES};
-use fulcrum_shared::valid::check_record;
-use fulcrum_shared::{State, World};
+use fulcrum_world::{State, World};
 
 /// The worlds of actor `index` from the checkpoint, if it was taken at `version`; a
 /// record that is not one of the world's is replaced by a fresh episode (warned).

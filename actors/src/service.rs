@@ -4,9 +4,9 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
+use fulcrum_contracts::msg::{item, MAX_IN_FLIGHT};
 use fulcrum_empowerment::service::{Ask, Client, ClientError};
-use fulcrum_shared::msg::{item, MAX_IN_FLIGHT};
-use fulcrum_shared::{State, World};
+use fulcrum_world::{State, World};
 
 use crate::error::ActorError;
 

@@ -4,13 +4,13 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use fulcrum_shared::traj::WeightsSubscriber;
+use fulcrum_contracts::traj::WeightsSubscriber;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::prelude::*;
 
 use crate::error::ActorError;
 use crate::policy::Policy;
-use fulcrum_shared::IpcError;
+use fulcrum_contracts::IpcError;
 
 /// Where new weights come from.
 pub(crate) struct WeightsIn {

@@ -9,13 +9,13 @@ use std::time::Duration;
 
 use crate::error::refuse;
 use anyhow::{Context, Result};
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::msg;
+use fulcrum_contracts::stop::STOP;
+use fulcrum_contracts::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
+use fulcrum_contracts::IpcError;
 use fulcrum_empowerment::service;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::msg;
-use fulcrum_shared::stop::STOP;
-use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
-use fulcrum_shared::IpcError;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 use iceoryx2::prelude::*;
 use zenoh::handlers::RingChannel;
 use zenoh::qos::{CongestionControl, Priority};
@@ -27,7 +27,7 @@ use crate::hello::{join, joined_line, valid_host_name, write_atomic, Hello, Join
 use crate::secret::Secret;
 use crate::session::{locator, node, open_session, Auth, ZenohOptions};
 use crate::stats::BridgeStats;
-use fulcrum_shared::lines::ChildLine;
+use fulcrum_contracts::lines::ChildLine;
 
 /// What an actor host insists on before it joins.
 #[derive(Debug, Clone, Copy)]
@@ -98,7 +98,7 @@ pub fn connect(
         let mut fwd = Forwarder::new(&session, &run, &world, stats.clone(), give_up)?;
         let line = joined_line(&joined);
         // This host's actors, whatever their number: the most a service takes.
-        let clients = fulcrum_shared::msg::MAX_CLIENTS;
+        let clients = fulcrum_contracts::msg::MAX_CLIENTS;
         let r = service::serve_with(
             &mut fwd,
             &local_ns,
@@ -142,7 +142,7 @@ pub fn connect(
 
 /// The world and run the learner's host sent, checked against what this host wants.
 fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
-    let world = fulcrum_shared::parse_world(&hello.world_source, &hello.world_name)
+    let world = fulcrum_world::parse_world(&hello.world_source, &hello.world_name)
         .context("the run's world does not parse here")?;
     let hash = format!("{:016x}", world.content_hash());
     if hash != hello.world_hash {
@@ -158,7 +158,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         ));
     }
     if let Some(w) = want.world {
-        let mine = fulcrum_shared::load_world(w)?;
+        let mine = fulcrum_world::load_world(w)?;
         if mine.content_hash() != world.content_hash() {
             return refuse(format!(
                 "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",

@@ -1,5 +1,5 @@
 //! The bridge's errors, typed: zenoh's error is kept as the source and the operation is
-//! named (iceoryx2's are [`fulcrum_shared::IpcError`]); a request the bridge cannot
+//! named (iceoryx2's are [`fulcrum_contracts::IpcError`]); a request the bridge cannot
 //! take (a bad address, a missing secret, a host the learner refused) is [`Refused`],
 //! which the binary turns into exit code 2.
 

@@ -6,10 +6,10 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use anyhow::Result;
+use fulcrum_contracts::msg::{self, status, wire, Describe, EmpRequest, EmpResponse};
+use fulcrum_contracts::stop::STOP;
 use fulcrum_empowerment::service::Answer;
-use fulcrum_shared::msg::{self, status, wire, Describe, EmpRequest, EmpResponse};
-use fulcrum_shared::stop::STOP;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 use zenoh::qos::{CongestionControl, Priority};
 use zenoh::Wait;
 

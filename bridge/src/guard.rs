@@ -32,12 +32,12 @@
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
-use fulcrum_shared::chunk_check::check_chunk;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::intrinsic::Intrinsic;
-use fulcrum_shared::msg::kind;
-use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, HOST_STRIDE, MAX_ACTORS};
-use fulcrum_shared::World;
+use fulcrum_contracts::chunk_check::check_chunk;
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::intrinsic::Intrinsic;
+use fulcrum_contracts::msg::kind;
+use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, HOST_STRIDE, MAX_ACTORS};
+use fulcrum_world::World;
 
 /// The learner's zenoh access control for run `ns` (JSON): deny by default, on both
 /// flows, and allow only what the run needs. A rule allows a message when its key

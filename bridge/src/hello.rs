@@ -8,9 +8,9 @@ use std::time::{Duration, Instant};
 
 use crate::error::refuse;
 use anyhow::{Context, Result};
-use fulcrum_shared::lines::ChildLine;
-use fulcrum_shared::stop::STOP;
-use fulcrum_shared::traj::HOST_STRIDE;
+use fulcrum_contracts::lines::ChildLine;
+use fulcrum_contracts::stop::STOP;
+use fulcrum_contracts::traj::HOST_STRIDE;
 use serde::{Deserialize, Serialize};
 use zenoh::Wait;
 
@@ -21,13 +21,13 @@ use crate::error::ZenohError;
 pub struct Hello {
     /// The run's namespace on the learner's host (the key expressions' `<run>`).
     pub run: String,
-    /// The run's tag ([`fulcrum_shared::traj::run_tag`] of `run`): chunks carry it.
+    /// The run's tag ([`fulcrum_contracts::traj::run_tag`] of `run`): chunks carry it.
     pub run_tag: u64,
     /// The run's id (its directory name by default).
     pub run_id: String,
     /// The world's text; its hash is the run's world hash.
     pub world_source: String,
-    /// [`fulcrum_shared::World::content_hash`], hex.
+    /// [`fulcrum_world::World::content_hash`], hex.
     pub world_hash: String,
     /// The world's name.
     pub world_name: String,
@@ -74,13 +74,13 @@ pub(crate) fn write_hosts(path: &Path, hosts: &BTreeMap<String, (u32, String)>) 
 
 /// Writes a file atomically, the error naming it.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    fulcrum_shared::fsio::write_atomic(path, bytes)
+    fulcrum_contracts::fsio::write_atomic(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// What an actor host needs to start its actors (printed by the bridge when ready, as
 /// [`ChildLine::BridgeJoined`]).
-pub use fulcrum_shared::lines::Joined;
+pub use fulcrum_contracts::lines::Joined;
 
 /// The `ready` line the bridge prints once joined.
 pub fn joined_line(j: &Joined) -> String {
@@ -106,7 +106,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
         let replies = session
             .get(format!(
                 "fulcrum/hello?name={name};from={}",
-                fulcrum_shared::host::hostname()
+                fulcrum_contracts::host::hostname()
             ))
             .timeout(Duration::from_secs(2))
             .wait()

@@ -10,15 +10,15 @@ use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use anyhow::Result;
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::lines::ChildLine;
+use fulcrum_contracts::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
+use fulcrum_contracts::stop::STOP;
+use fulcrum_contracts::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
+use fulcrum_contracts::IpcError;
 use fulcrum_empowerment::service::Client;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::lines::ChildLine;
-use fulcrum_shared::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};
-use fulcrum_shared::stop::STOP;
-use fulcrum_shared::traj::{self, ChunkHeader, TrainNames, WeightsHeader};
-use fulcrum_shared::IpcError;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 use iceoryx2::port::BackpressureAction;
 use iceoryx2::prelude::*;
 use zenoh::handlers::FifoChannel;
@@ -38,7 +38,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
         dir: dir.to_path_buf(),
     };
     let cfg = RunConfig::load(&paths.config())?;
-    let world = fulcrum_shared::load_world(&cfg.world)?;
+    let world = fulcrum_world::load_world(&cfg.world)?;
     let endpoint = locator(addr)?;
     let (secret, secret_file) = Secret::for_run(dir)?;
     let auth = Auth {

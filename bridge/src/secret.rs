@@ -122,7 +122,7 @@ impl Secret {
             .open(&tmp)
             .with_context(|| format!("cannot create {}", tmp.display()))?;
         let line = format!("{USER}:{}\n", self.0);
-        fulcrum_shared::fsio::replace_via(&path, &tmp, line.as_bytes(), false)
+        fulcrum_contracts::fsio::replace_via(&path, &tmp, line.as_bytes(), false)
             .map_err(|(what, e)| anyhow::Error::new(e).context(what))?;
         Ok(path)
     }

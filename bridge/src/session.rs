@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use crate::error::refuse;
 use anyhow::Result;
-use fulcrum_shared::IpcError;
+use fulcrum_contracts::IpcError;
 use iceoryx2::prelude::*;
 use zenoh::Wait;
 

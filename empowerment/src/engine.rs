@@ -10,7 +10,7 @@
 //! comes with a gap: the capacity lies in `[value, value + gap]`; the gap is 0 wherever
 //! the value is exact (deterministic worlds, the closed form of two outputs).
 
-use fulcrum_shared::{Mode, ObjectSet, State, World};
+use fulcrum_world::{Mode, ObjectSet, State, World};
 use rayon::prelude::*;
 
 use crate::capacity::Capacity;
@@ -260,10 +260,10 @@ impl<'w> Engine<'w> {
                 })
                 .collect());
         }
-        if h > fulcrum_shared::MAX_HORIZON {
+        if h > fulcrum_world::MAX_HORIZON {
             return Err(EngineError::HorizonTooLarge {
                 h,
-                max: fulcrum_shared::MAX_HORIZON,
+                max: fulcrum_world::MAX_HORIZON,
             });
         }
         let actions = tool.actions(self.world);
@@ -635,10 +635,10 @@ impl<'w> Engine<'w> {
         let ids: Vec<u32> = (0..self.space.len() as u32).collect();
         if horizon_sum {
             let h = hu.max(he);
-            if h > fulcrum_shared::MAX_HORIZON {
+            if h > fulcrum_world::MAX_HORIZON {
                 return Err(EngineError::HorizonTooLarge {
                     h,
-                    max: fulcrum_shared::MAX_HORIZON,
+                    max: fulcrum_world::MAX_HORIZON,
                 });
             }
             let actions = tool.actions(self.world);
@@ -712,7 +712,7 @@ const SMALL_SPACE: usize = 100_000;
 fn check_enumerable(actions: usize, horizons: &[u32], states: usize) -> Result<(), EngineError> {
     let h = horizons.iter().copied().max().unwrap_or(0);
     let per_state = (actions as f64).powi(h as i32);
-    if per_state * states.max(1) as f64 > 2e9 || h > fulcrum_shared::MAX_HORIZON {
+    if per_state * states.max(1) as f64 > 2e9 || h > fulcrum_world::MAX_HORIZON {
         return Err(EngineError::EnumerationTooLong {
             h,
             actions,

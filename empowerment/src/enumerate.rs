@@ -10,8 +10,8 @@
 //! exact distribution of proj_D(S_h) by following every outcome of every step with
 //! [`World::outcomes`], then Blahut-Arimoto on the rows (no closed form, no pruning).
 
-use fulcrum_shared::hash::{FastMap, FastSet};
-use fulcrum_shared::{ObjectSet, State, World};
+use fulcrum_world::hash::{FastMap, FastSet};
+use fulcrum_world::{ObjectSet, State, World};
 
 use crate::capacity::{blahut_arimoto, Capacity, GAP_BITS};
 use crate::propagate::project_key;

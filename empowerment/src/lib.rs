@@ -14,7 +14,7 @@
 //!
 //! ```
 //! use fulcrum_empowerment::{Engine, Limits, Method};
-//! use fulcrum_shared::{load_world, ObjectSet};
+//! use fulcrum_world::{load_world, ObjectSet};
 //! let world = load_world("exp1-tree").unwrap();
 //! let engine = Engine::new(&world, Limits::default()).unwrap();
 //! let tree = ObjectSet::Objects(vec![world.object_index("tree").unwrap()]);

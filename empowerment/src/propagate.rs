@@ -17,8 +17,8 @@
 //! `|S| * |A_j|^h` steps for enumerating action sequences. Memory: two tables of
 //! `|S| * W` words.
 
-use fulcrum_shared::hash::FastMap;
-use fulcrum_shared::{ObjectSet, State};
+use fulcrum_world::hash::FastMap;
+use fulcrum_world::{ObjectSet, State};
 use rayon::prelude::*;
 
 use crate::error::EngineError;
@@ -84,10 +84,10 @@ pub fn check_table(
     what: &str,
     limits: &Limits,
 ) -> Result<(), EngineError> {
-    if hmax > fulcrum_shared::MAX_HORIZON {
+    if hmax > fulcrum_world::MAX_HORIZON {
         return Err(EngineError::HorizonTooLarge {
             h: hmax,
-            max: fulcrum_shared::MAX_HORIZON,
+            max: fulcrum_world::MAX_HORIZON,
         });
     }
     let bytes = space.len() * proj.words() * 8 * 2 + space.len() * 4;

@@ -3,7 +3,7 @@
 //! not understood and what would be. The command line and the Python package read
 //! their arguments here, so both say the same sentence.
 
-use fulcrum_shared::{ObjectSet, ToolChoice, World};
+use fulcrum_world::{ObjectSet, ToolChoice, World};
 
 use crate::engine::{Engine, Method, ToolSel};
 use crate::error::EngineError;

@@ -13,7 +13,7 @@
 //! Memory: `states` (38 B each), the successor table (`4 |A|` B each) and the index
 //! (16 to 60 B each): at most `100 + 4 |A|` bytes per state.
 //!
-//! A stochastic world (`fulcrum_shared::chance`) is enumerated over every outcome with
+//! A stochastic world (`fulcrum_world::chance`) is enumerated over every outcome with
 //! positive probability, and keeps its transition distributions as well: for state s
 //! and action a, [`StateSpace::outcomes`] gives the ids and probabilities of the
 //! outcomes (12 B per outcome, at most 4 per pair, in one offset table of `4 |A|` B per
@@ -22,8 +22,8 @@
 
 use std::collections::hash_map::Entry;
 
-use fulcrum_shared::hash::FastMap;
-use fulcrum_shared::{Mode, State, World};
+use fulcrum_world::hash::FastMap;
+use fulcrum_world::{Mode, State, World};
 use rayon::prelude::*;
 
 use crate::error::EngineError;
@@ -55,7 +55,7 @@ impl Packer {
             .objects
             .iter()
             .map(|o| {
-                if o.kind == fulcrum_shared::ObjectKind::Boulder {
+                if o.kind == fulcrum_world::ObjectKind::Boulder {
                     // Cell index, or `cells` for destroyed.
                     (bits(cells as u64), cells, true)
                 } else {
@@ -92,7 +92,7 @@ impl Packer {
         for (&(b, max, boulder), &raw) in self.objects.iter().zip(&s.objects) {
             // Boulders: a cell index below `cells` (= max), or destroyed, keyed as
             // `cells`; the others: a condition 0..=2 (= max).
-            let v = if boulder && raw == fulcrum_shared::BOULDER_DESTROYED {
+            let v = if boulder && raw == fulcrum_world::BOULDER_DESTROYED {
                 max
             } else {
                 bad |= if boulder { raw >= max } else { raw > max };
@@ -127,7 +127,7 @@ impl Packer {
             + s.mode as u64;
         k = k << self.tools | s.inventory as u64;
         for (&(b, _, boulder), &v) in self.objects.iter().zip(&s.objects) {
-            let v = if boulder && v == fulcrum_shared::BOULDER_DESTROYED {
+            let v = if boulder && v == fulcrum_world::BOULDER_DESTROYED {
                 self.cells
             } else {
                 v
@@ -421,7 +421,7 @@ impl StateSpace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fulcrum_shared::load_world;
+    use fulcrum_world::load_world;
 
     #[test]
     fn every_state_finds_its_own_id_and_garbage_finds_none() {

@@ -33,7 +33,7 @@
 //! outputs). Memory: one level's distributions and its channel, within the engine's
 //! limit shared by the threads (refused with [`EngineError::ChannelTooLarge`] beyond).
 
-use fulcrum_shared::hash::{FastMap, FastSet};
+use fulcrum_world::hash::{FastMap, FastSet};
 use rayon::prelude::*;
 
 use crate::capacity::{capacity, Capacity};

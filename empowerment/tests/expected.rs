@@ -3,7 +3,7 @@
 //! `docs/world.md`. Relative tolerance 1e-9.
 
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
-use fulcrum_shared::{load_world, parse_world, ObjectSet, World};
+use fulcrum_world::{load_world, parse_world, ObjectSet, World};
 
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-9 * b.abs().max(1e-300) || (a == 0.0 && b == 0.0)

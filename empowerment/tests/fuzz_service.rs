@@ -4,10 +4,10 @@
 
 use std::time::Duration;
 
+use fulcrum_contracts::msg::{item, kind, status, EmpRequest, EmpResponse, MAX_BATCH, STATE_BYTES};
 use fulcrum_empowerment::service::{ServeConfig, Tables};
 use fulcrum_empowerment::{Engine, Limits, ToolSel};
-use fulcrum_shared::msg::{item, kind, status, EmpRequest, EmpResponse, MAX_BATCH, STATE_BYTES};
-use fulcrum_shared::{load_world, ObjectSet};
+use fulcrum_world::{load_world, ObjectSet};
 use proptest::prelude::*;
 
 fn zeroed<T>() -> Box<T> {
@@ -36,7 +36,7 @@ proptest! {
             horizon_equipped: 3,
             cache_bytes: 16 << 20,
             spin: Duration::ZERO,
-            max_clients: fulcrum_shared::msg::MAX_CLIENTS,
+            max_clients: fulcrum_contracts::msg::MAX_CLIENTS,
         }).unwrap();
         let mut req: Box<EmpRequest> = zeroed();
         req.world_hash = if right_world { w.content_hash() } else { 42 };

@@ -13,9 +13,9 @@ use std::time::Duration;
 
 use fulcrum_empowerment::service::{ServeConfig, Tables};
 use fulcrum_empowerment::{Engine, Limits, ToolSel};
-use fulcrum_shared::{load_world, ObjectSet, APPLY, EAST, NORTH, SELECT0};
+use fulcrum_world::{load_world, ObjectSet, APPLY, EAST, NORTH, SELECT0};
 
-fn tables(horizon_sum: bool) -> (fulcrum_shared::World, ServeConfig) {
+fn tables(horizon_sum: bool) -> (fulcrum_world::World, ServeConfig) {
     let w = load_world("exp1-tree").unwrap();
     let axe = w.tool_index("axe").unwrap();
     let tree = w.objects.iter().position(|o| o.name == "tree").unwrap();
@@ -28,12 +28,12 @@ fn tables(horizon_sum: bool) -> (fulcrum_shared::World, ServeConfig) {
         horizon_sum,
         cache_bytes: 1 << 20,
         spin: Duration::ZERO,
-        max_clients: fulcrum_shared::msg::MAX_CLIENTS,
+        max_clients: fulcrum_contracts::msg::MAX_CLIENTS,
     };
     (w, cfg)
 }
 
-fn path(w: &fulcrum_shared::World) -> Vec<fulcrum_shared::State> {
+fn path(w: &fulcrum_world::World) -> Vec<fulcrum_world::State> {
     let axe = w.tool_index("axe").unwrap() as u8;
     let plan = [
         EAST,

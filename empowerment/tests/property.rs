@@ -3,8 +3,8 @@
 //! object, all objects jointly, the agent) and every h <= 4.
 
 use fulcrum_empowerment::{enumerate, Engine, Limits, Method, ToolSel};
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{parse_world, ObjectSet};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{parse_world, ObjectSet};
 use proptest::prelude::*;
 
 proptest! {

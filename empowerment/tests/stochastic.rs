@@ -5,8 +5,8 @@
 
 use fulcrum_empowerment::capacity::{binary_capacity, blahut_arimoto, GAP_BITS};
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{load_world, parse_world, ObjectSet, State, World};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{load_world, parse_world, ObjectSet, State, World};
 
 fn world(text: &str) -> World {
     parse_world(text, "test.toml").unwrap()
@@ -238,20 +238,20 @@ fn agrees_with_brute_force_on_the_slip_worlds() {
 fn with_explicit_certainty(w: &World) -> String {
     let mut text = w.source.clone();
     text.push_str("\n[dynamics]\nslip = 0\n");
-    for r in fulcrum_shared::world::default_rules() {
+    for r in fulcrum_world::world::default_rules() {
         if !w.tools.iter().any(|t| t.kind == r.tool) {
             continue;
         }
         let range = match r.range {
-            fulcrum_shared::Range::Adjacent => "1",
-            fulcrum_shared::Range::Bolt => "\"bolt\"",
+            fulcrum_world::Range::Adjacent => "1",
+            fulcrum_world::Range::Bolt => "\"bolt\"",
         };
         text.push_str(&format!(
             "\n[[rules]]\ntool = \"{}\"\ntarget = \"{}\"\nfrom = \"{}\"\nto = \"{}\"\nrange = {range}\np = 1\n",
             r.tool,
             r.target.name(),
-            fulcrum_shared::world::cond_name(r.target, r.from),
-            fulcrum_shared::world::cond_name(r.target, r.to),
+            fulcrum_world::world::cond_name(r.target, r.from),
+            fulcrum_world::world::cond_name(r.target, r.to),
         ));
     }
     text
@@ -261,7 +261,7 @@ fn with_explicit_certainty(w: &World) -> String {
 // five built-in worlds and of generated worlds.
 #[test]
 fn certainty_written_out_changes_nothing() {
-    let mut worlds: Vec<World> = fulcrum_shared::builtin::NAMES
+    let mut worlds: Vec<World> = fulcrum_world::builtin::NAMES
         .iter()
         .map(|n| load_world(n).unwrap())
         .collect();

@@ -17,13 +17,13 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 use std::time::Instant;
 
 use candle_core::Device;
+use fulcrum_contracts::layout::shape_for;
+use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::local::{update, UpdateData};
 use fulcrum_learner::net::Net;
-use fulcrum_shared::layout::shape_for;
-use fulcrum_shared::load_world;
-use fulcrum_shared::ppo_config::PpoConfig;
-use fulcrum_shared::View;
+use fulcrum_world::load_world;
+use fulcrum_world::View;
 use rand::seq::SliceRandom;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;

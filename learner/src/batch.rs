@@ -3,8 +3,8 @@
 //! truncated-episode values, termination does not), or with two value heads one GAE per
 //! reward stream; then everything concatenated in the batch's order.
 
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::traj::{read_f32s, ChunkHeader, ChunkLayout, Section};
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::traj::{read_f32s, ChunkHeader, ChunkLayout, Section};
 
 use crate::gae::{gae, Rollout};
 use crate::local::UpdateData;

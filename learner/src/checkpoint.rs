@@ -1,6 +1,6 @@
 //! Checkpoints of the candle network and its optimiser: [`save`] and [`load`] move the
 //! weights and Adam's state of a [`Net`] and an [`Adam`] to and from a checkpoint file
-//! (the format, its checks and its atomic writes: [`fulcrum_shared::checkpoint`]), and
+//! (the format, its checks and its atomic writes: [`fulcrum_contracts::checkpoint`]), and
 //! [`rng_state`] and [`rng_restore`] turn the learner's generator into a blob and back.
 //!
 //! [`save`]: crate::checkpoint::save
@@ -13,7 +13,7 @@
 use std::path::Path;
 
 use candle_core::{DType, Tensor};
-use fulcrum_shared::checkpoint::{self as file, ParamState, ADAM_M, ADAM_V};
+use fulcrum_contracts::checkpoint::{self as file, ParamState, ADAM_M, ADAM_V};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -21,7 +21,7 @@ use crate::adam::Adam;
 use crate::net::Net;
 
 // What `save` and `load` take and give, where the learner's callers have always found it.
-pub use fulcrum_shared::checkpoint::{CheckpointError, Extra};
+pub use fulcrum_contracts::checkpoint::{CheckpointError, Extra};
 
 /// Length of [`rng_state`]'s output: seed (32) + stream (8) + word position (16).
 pub const RNG_STATE_LEN: usize = 56;
@@ -39,7 +39,7 @@ fn f32s(t: &Tensor) -> candle_core::Result<Vec<f32>> {
 }
 
 /// Writes the network, Adam's state and `extra` to `path`, atomically (see
-/// [`fulcrum_shared::checkpoint`]). On error the previous file at `path`, if any, is left
+/// [`fulcrum_contracts::checkpoint`]). On error the previous file at `path`, if any, is left
 /// intact.
 pub fn save(path: &Path, net: &Net, adam: &Adam, extra: &Extra) -> Result<(), CheckpointError> {
     let mismatch = |detail: String| CheckpointError::Mismatch {
@@ -85,7 +85,7 @@ pub fn save(path: &Path, net: &Net, adam: &Adam, extra: &Extra) -> Result<(), Ch
 
 /// Reads a checkpoint written by [`save`] into `net` and `adam` and returns the rest.
 ///
-/// The file is validated completely first (see [`fulcrum_shared::checkpoint`]); on any
+/// The file is validated completely first (see [`fulcrum_contracts::checkpoint`]); on any
 /// error `net` and `adam` are unchanged.
 pub fn load(path: &Path, net: &Net, adam: &mut Adam) -> Result<Extra, CheckpointError> {
     let table: Vec<(&str, Vec<usize>)> = net

@@ -53,7 +53,7 @@ pub(crate) fn rewrite_rows(
         out.push('\n');
     }
     if out != text {
-        fulcrum_shared::fsio::write_atomic(path, out.as_bytes())
+        fulcrum_contracts::fsio::write_atomic(path, out.as_bytes())
             .map_err(|e| LearnerError::Run(format!("cannot rewrite {}: {e}", path.display())))?;
     }
     Ok(())

@@ -25,5 +25,5 @@ pub enum LearnerError {
     },
     /// iceoryx2 failed.
     #[error(transparent)]
-    Ipc(#[from] fulcrum_shared::IpcError),
+    Ipc(#[from] fulcrum_contracts::IpcError),
 }

@@ -136,7 +136,7 @@ pub fn trim_periodic(path: &Path, update: u64) -> std::io::Result<Vec<EvalRow>> 
         }
     }
     if out != text {
-        fulcrum_shared::fsio::write_atomic(path, out.as_bytes())?;
+        fulcrum_contracts::fsio::write_atomic(path, out.as_bytes())?;
     }
     Ok(kept)
 }

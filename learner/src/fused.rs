@@ -46,13 +46,13 @@
 use std::ops::Range;
 
 use candle_core::{bail, Result, Tensor};
-use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
 
 use crate::adam::{adam_ranges, Adam, AdamStep};
 use crate::diagnostics::Stats;
 use crate::net::Net;
 use crate::simd::{simd, Simd};
-use fulcrum_shared::layout::{NetShape, Offsets};
+use fulcrum_contracts::layout::{NetShape, Offsets};
 
 /// A rollout prepared for the update.
 mod data;

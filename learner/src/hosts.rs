@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 use std::io::Write;
 
-use fulcrum_shared::traj;
+use fulcrum_contracts::traj;
 
 use crate::batch::Chunk;
 use crate::csv::open_csv;

@@ -1,5 +1,5 @@
 //! A chunk's way in: copied out of shared memory first, then checked whole
-//! ([`fulcrum_shared::chunk_check::check_chunk`]), then used. Checking the bytes in
+//! ([`fulcrum_contracts::chunk_check::check_chunk`]), then used. Checking the bytes in
 //! shared memory and copying them afterwards would let the sender change them in
 //! between; the copy is what the update trains on and what the checkpoint stores, so it
 //! is what is checked.
@@ -8,9 +8,9 @@
 //! update (a [`Batch`] built from the chunks, the fused PPO step) consumes without an
 //! error or a panic, and leaves the network's weights finite.
 
-use fulcrum_shared::chunk_check::{check_chunk, BadChunk};
-use fulcrum_shared::traj::{ChunkHeader, ChunkLayout};
-use fulcrum_shared::World;
+use fulcrum_contracts::chunk_check::{check_chunk, BadChunk};
+use fulcrum_contracts::traj::{ChunkHeader, ChunkLayout};
+use fulcrum_world::World;
 
 use crate::batch::Chunk;
 
@@ -37,12 +37,12 @@ mod tests {
     use crate::net::Net;
     use crate::running_std::RunningStd;
     use candle_core::Device;
-    use fulcrum_shared::chunk_check::{INT_REWARD_BOUND, LOGPROB_FLOOR, VALUE_BOUND};
-    use fulcrum_shared::config::{ChannelTool, HorizonMode, RunConfig};
-    use fulcrum_shared::intrinsic::Intrinsic;
-    use fulcrum_shared::load_world;
-    use fulcrum_shared::ppo_config::PpoConfig;
-    use fulcrum_shared::traj::{put_f32, EnvRecord, Section, ENV_BYTES};
+    use fulcrum_contracts::chunk_check::{INT_REWARD_BOUND, LOGPROB_FLOOR, VALUE_BOUND};
+    use fulcrum_contracts::config::{ChannelTool, HorizonMode, RunConfig};
+    use fulcrum_contracts::intrinsic::Intrinsic;
+    use fulcrum_contracts::ppo_config::PpoConfig;
+    use fulcrum_contracts::traj::{put_f32, EnvRecord, Section, ENV_BYTES};
+    use fulcrum_world::load_world;
     use proptest::prelude::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
@@ -68,7 +68,7 @@ mod tests {
             empowerment: true,
             intrinsic: Intrinsic::Additive,
             horizon_mode: HorizonMode::Switch,
-            empowerment_model: fulcrum_shared::config::EmpowermentModel::Exact,
+            empowerment_model: fulcrum_contracts::config::EmpowermentModel::Exact,
             tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,
@@ -80,7 +80,7 @@ mod tests {
             eval_every: 0,
             eval_episodes: 10,
             action_mask: mask,
-            view: fulcrum_shared::View::Full,
+            view: fulcrum_world::View::Full,
             intrinsic_value_head: two_heads,
             gamma_int: 0.99,
             ppo: PpoConfig {
@@ -144,7 +144,7 @@ mod tests {
                 );
                 p[f0 + i * f..f0 + (i + 1) * f].copy_from_slice(&fl);
                 // An action the mode allows (what a masked actor samples).
-                let allowed = fulcrum_shared::mask::action_mask(&fl);
+                let allowed = fulcrum_world::mask::action_mask(&fl);
                 let a = loop {
                     let a = rng.random_range(0..world.num_actions()) as u8;
                     if allowed >> a & 1 == 1 {

@@ -1,13 +1,13 @@
 //! fulcrum-learner: the candle PPO learner.
 //!
 //! PPO as CleanRL's `ppo.py` with an advantage floor, or RLlib's defaults ([`ppo`]:
-//! presets), over the actions each mode allows (`fulcrum_shared::mask`), on an
+//! presets), over the actions each mode allows (`fulcrum_world::mask`), on an
 //! actor-critic network whose first layer sums one embedding row per (cell, glyph), with
 //! an optional second value head for the intrinsic return ([`net`]), with GAE that tells
 //! truncation from termination ([`mod@gae`]). [`local`] trains in one process (the
 //! reference loop that the multi-process training of `fulcrum train` distributes),
 //! [`process`] is the learner process of that training. What the learner shares with the actors (the weight layout, the
-//! run configuration, the checkpoint format) is in `fulcrum_shared`.
+//! run configuration, the checkpoint format) is in `fulcrum_contracts`.
 
 /// Adam with its state in the open, and its loop over flat buffers.
 pub mod adam;

@@ -8,9 +8,9 @@
 //! [`update`]: crate::local::update
 
 use candle_core::{Device, Result};
-use fulcrum_shared::layout::shape_for;
-use fulcrum_shared::View;
-use fulcrum_shared::{Episode, World};
+use fulcrum_contracts::layout::shape_for;
+use fulcrum_world::View;
+use fulcrum_world::{Episode, World};
 use rand::seq::SliceRandom;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -21,7 +21,7 @@ use crate::fused::{Data, Learner};
 use crate::gae::{gae, Rollout};
 use crate::net::{mask_bias, sample, Net};
 // The network's shape for a world, where the binary has always found it.
-use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
 
 /// What to train.
 #[derive(Debug, Clone, Copy)]
@@ -38,7 +38,7 @@ pub struct LocalConfig {
     pub seed: u64,
     /// Weight of the intrinsic reward.
     pub beta: f32,
-    /// Per-mode action masking ([`fulcrum_shared::mask`]).
+    /// Per-mode action masking ([`fulcrum_world::mask`]).
     pub action_mask: bool,
     /// PPO hyperparameters.
     pub ppo: PpoConfig,
@@ -93,7 +93,7 @@ impl UpdateLog {
 pub fn train(
     world: &World,
     cfg: &LocalConfig,
-    intrinsic: &dyn Fn(&fulcrum_shared::State) -> f32,
+    intrinsic: &dyn Fn(&fulcrum_world::State) -> f32,
     mut on_update: impl FnMut(&UpdateLog),
 ) -> Result<(Net, Vec<UpdateLog>)> {
     let dev = Device::Cpu;
@@ -255,7 +255,7 @@ pub struct UpdateData<'a> {
     pub advantages: &'a [f32],
     /// Returns.
     pub returns: &'a [f32],
-    /// Whether the policy's logits are masked per mode ([`fulcrum_shared::mask`]).
+    /// Whether the policy's logits are masked per mode ([`fulcrum_world::mask`]).
     pub action_mask: bool,
     /// With the intrinsic value head: V_int old and the intrinsic returns.
     pub int: Option<(&'a [f32], &'a [f32])>,

@@ -1,7 +1,7 @@
 //! The actor-critic network.
 //!
 //! Input: a `W x H` glyph grid (ids `0..G`) and a flag vector of length F (held tools,
-//! mode one-hot; see `fulcrum_shared::env`). With C = W * H cells and hidden size H:
+//! mode one-hot; see `fulcrum_world::env`). With C = W * H cells and hidden size H:
 //!
 //! ```text
 //! h1     = relu( sum_c E[c * G + glyph_c] + flags @ Wf + b1 )      E: (C*G, H), Wf: (F, H)
@@ -18,7 +18,7 @@
 //! (candle's CPU generator cannot be seeded).
 
 use candle_core::{DType, Device, Result, Storage, Tensor, Var, D};
-use fulcrum_shared::layout::NetShape;
+use fulcrum_contracts::layout::NetShape;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -248,7 +248,7 @@ pub fn append_f32(out: &mut Vec<f32>, t: &Tensor) -> Result<()> {
 /// enough that `exp` of it is exactly 0 in f32.
 pub const MASKED_LOGIT: f32 = -1e30;
 
-/// Per sample, 0 for the actions [`fulcrum_shared::mask::action_mask`] allows and
+/// Per sample, 0 for the actions [`fulcrum_world::mask::action_mask`] allows and
 /// [`MASKED_LOGIT`] for the others: `(n, actions)` for `n` samples of `flags` bytes each.
 pub fn mask_bias(flag_bytes: &[u8], flags: usize, actions: usize, dev: &Device) -> Result<Tensor> {
     let n = flag_bytes.len() / flags.max(1);
@@ -257,7 +257,7 @@ pub fn mask_bias(flag_bytes: &[u8], flags: usize, actions: usize, dev: &Device) 
         .chunks_exact_mut(actions.max(1))
         .zip(flag_bytes.chunks_exact(flags.max(1)))
     {
-        let m = fulcrum_shared::mask::action_mask(fl);
+        let m = fulcrum_world::mask::action_mask(fl);
         for (a, x) in row.iter_mut().enumerate() {
             if m >> a & 1 == 0 {
                 *x = MASKED_LOGIT;

@@ -1,10 +1,10 @@
 //! The learner's shared-memory ports (iceoryx2): trajectory chunks and their wake-up
 //! events in, policy weights and theirs out; and publishing a version of the weights.
 
-use fulcrum_shared::traj::{
+use fulcrum_contracts::traj::{
     self, ChunkSubscriber, PolicyFactory, TrainNames, TrajFactory, WeightsHeader, WeightsPublisher,
 };
-use fulcrum_shared::IpcError;
+use fulcrum_contracts::IpcError;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::prelude::*;

@@ -23,15 +23,15 @@
 //! clipping the global gradient norm; the learning rate is annealed linearly to 0 over
 //! the run.
 //!
-//! [`PpoConfig::adv_std_floor`]: fulcrum_shared::ppo_config::PpoConfig::adv_std_floor
+//! [`PpoConfig::adv_std_floor`]: fulcrum_contracts::ppo_config::PpoConfig::adv_std_floor
 //! [`Preset::Rllib`]: crate::preset::Preset::Rllib
-//! [`PpoConfig::adapt_kl`]: fulcrum_shared::ppo_config::PpoConfig::adapt_kl
+//! [`PpoConfig::adapt_kl`]: fulcrum_contracts::ppo_config::PpoConfig::adapt_kl
 
 use candle_core::{Result, Tensor};
 
 use crate::diagnostics::Stats;
 use crate::net::{logprob_entropy, Net, ObsBatch};
-use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
 
 /// One minibatch's data.
 #[derive(Debug)]

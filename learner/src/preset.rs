@@ -1,6 +1,6 @@
 //! Named sets of PPO settings: fulcrum's, CleanRL's and RLlib's defaults.
 
-use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
 
 /// Named sets of PPO settings (`train --ppo-preset`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

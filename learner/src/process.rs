@@ -26,10 +26,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use candle_core::Device;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::ppo_config::PpoConfig;
-use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, Section};
-use fulcrum_shared::World;
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
+use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, Section};
+use fulcrum_world::World;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -50,7 +50,7 @@ use crate::paths::RunPaths;
 use crate::ports::Ports;
 use crate::trap::TrapDetector;
 use crate::watch::{Fault, LocalStall, Notice};
-use fulcrum_shared::IpcError;
+use fulcrum_contracts::IpcError;
 
 /// Why the learner stopped.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -79,7 +79,7 @@ pub fn run_learner(
 }
 
 /// Plays the policy of the given flat weights (the order of
-/// [`fulcrum_shared::layout::NetShape::params`]) greedily and says what it did: the
+/// [`fulcrum_contracts::layout::NetShape::params`]) greedily and says what it did: the
 /// periodic evaluation of `train --eval-every`. The learner fills in the row's update and
 /// env steps, appends it to `eval.csv` and gives its scalars to TensorBoard.
 pub type Evaluate<'a> = Box<dyn FnMut(&[f32]) -> Result<EvalRow, String> + 'a>;

@@ -243,7 +243,7 @@ impl EventWriter {
         }
         let name = format!("events.out.tfevents.{}.fulcrum", t as u64);
         let path = dir.join(&name);
-        fulcrum_shared::fsio::write_atomic(&path, &data)?;
+        fulcrum_contracts::fsio::write_atomic(&path, &data)?;
         // Earlier files (a run resumed) hold rows this one has again or dropped.
         for entry in std::fs::read_dir(dir)?.flatten() {
             let p = entry.path();

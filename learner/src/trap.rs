@@ -39,8 +39,8 @@
 
 use std::collections::VecDeque;
 
-use fulcrum_shared::intrinsic::Intrinsic;
-use fulcrum_shared::{Task, World};
+use fulcrum_contracts::intrinsic::Intrinsic;
+use fulcrum_world::{Task, World};
 
 use crate::metrics::MetricsRow;
 
@@ -79,7 +79,7 @@ pub struct TrapDetector {
 }
 
 /// What the window shows when the detector marks an update.
-pub use fulcrum_shared::lines::TrapSigns;
+pub use fulcrum_contracts::lines::TrapSigns;
 
 impl TrapDetector {
     /// The detector of a run of `world` with this form and beta (a world without a task
@@ -185,7 +185,7 @@ mod tests {
 
     /// exp1-tree: a destroy task of one object, 100-step episodes.
     fn world() -> World {
-        fulcrum_shared::load_world("exp1-tree").unwrap()
+        fulcrum_world::load_world("exp1-tree").unwrap()
     }
 
     /// An update of 1024 steps, 10 episodes: `success` of them, every one `length` long,
@@ -284,7 +284,7 @@ mod tests {
             assert!(!d.watches());
             assert_eq!(all(&mut d, &|u| row(u, 0.0, 100.0, 88.0, 0.89)), 0);
         }
-        let open = fulcrum_shared::parse_world(
+        let open = fulcrum_world::parse_world(
             "name = \"open\"\nmap = \"\"\"\n#####\n#@aT#\n#####\n\"\"\"\n[tools]\na = \"axe\"\n",
             "open.toml",
         )
@@ -296,7 +296,7 @@ mod tests {
     fn the_task_reward_scales_the_worth() {
         // exp2 pays 2 for its two objects: 88 bits at 0.0009 is 0.0396 of it, too little;
         // 120 bits (0.054 of 2 = 0.108 / 2) is enough.
-        let exp2 = fulcrum_shared::load_world("exp2").unwrap();
+        let exp2 = fulcrum_world::load_world("exp2").unwrap();
         let count = |bits: f64| {
             let mut d = TrapDetector::new(Intrinsic::Additive, 0.0009, &exp2);
             (1..=200)

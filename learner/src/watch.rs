@@ -37,8 +37,8 @@ const RECENT: usize = 16;
 const FACTOR: u32 = 10;
 
 /// What the learner tells its supervisor besides its metrics rows (a line of the
-/// child protocol, [`fulcrum_shared::lines`]).
-pub use fulcrum_shared::lines::Notice;
+/// child protocol, [`fulcrum_contracts::lines`]).
+pub use fulcrum_contracts::lines::Notice;
 
 /// Refuses a weights buffer with any non-finite number: the weights after `update`.
 pub fn ensure_finite(flat: &[f32], update: u64) -> Result<(), LearnerError> {

@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use candle_core::{Device, Tensor};
+use fulcrum_contracts::layout::NetShape;
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::checkpoint::{
     load, rng_restore, rng_state, save, CheckpointError, Extra, RNG_STATE_LEN,
 };
 use fulcrum_learner::net::Net;
-use fulcrum_shared::layout::NetShape;
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -506,7 +506,10 @@ fn failed_save_keeps_the_old_checkpoint() {
     let stale = sub.join(".latest.safetensors.tmp-999999999-0");
     fs::write(&stale, b"junk").unwrap();
     save(&path, &a, &adam, &ex).expect("save beside a stale temp file");
-    assert_eq!(fulcrum_shared::fsio::remove_stale_temps(&sub).unwrap(), 1);
+    assert_eq!(
+        fulcrum_contracts::fsio::remove_stale_temps(&sub).unwrap(),
+        1
+    );
     assert!(!stale.exists());
 
     fs::set_permissions(&sub, fs::Permissions::from_mode(0o555)).unwrap();

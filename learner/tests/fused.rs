@@ -3,15 +3,15 @@
 //! gradient clipping and Adam, and the same bits from every compiled variant.
 
 use candle_core::{Device, Tensor};
+use fulcrum_contracts::layout::NetShape;
+use fulcrum_contracts::layout::Offsets;
+use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::fused::{Data, Learner};
 use fulcrum_learner::net::{logprob_entropy, mask_bias, Net};
 use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
 use fulcrum_learner::preset::Preset;
 use fulcrum_learner::simd::Simd;
-use fulcrum_shared::layout::NetShape;
-use fulcrum_shared::layout::Offsets;
-use fulcrum_shared::ppo_config::PpoConfig;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 struct Rollout {
@@ -141,7 +141,7 @@ fn mask_rollout(net: &Net, r: &mut Rollout, seed: u64) {
     let s = net.shape;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     for (i, a) in r.actions.iter_mut().enumerate() {
-        let m = fulcrum_shared::mask::action_mask(&r.flags[i * s.flags..(i + 1) * s.flags]);
+        let m = fulcrum_world::mask::action_mask(&r.flags[i * s.flags..(i + 1) * s.flags]);
         let ok: Vec<u32> = (0..s.actions as u32).filter(|&k| m >> k & 1 == 1).collect();
         *a = ok[rng.random_range(0..ok.len())];
     }
@@ -275,7 +275,7 @@ fn check_gradient_heads(masked: bool, cfg: PpoConfig, int_value: bool) {
             // An action removed in every sample gets no gradient at its bias.
             let o = Offsets::new(shape);
             let removed = (0..n).fold(u32::MAX, |m, i| {
-                m & !fulcrum_shared::mask::action_mask(
+                m & !fulcrum_world::mask::action_mask(
                     &r.flags[i * shape.flags..(i + 1) * shape.flags],
                 )
             });

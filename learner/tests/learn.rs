@@ -9,7 +9,7 @@ static ALLOC: mimalloc::MiMalloc = mimalloc::MiMalloc;
 
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
 use fulcrum_learner::local::{train, LocalConfig, UpdateLog};
-use fulcrum_shared::load_world;
+use fulcrum_world::load_world;
 
 fn final_success(logs: &[UpdateLog]) -> f32 {
     if let Some(l) = logs.iter().find(|l| l.success_rate() >= 0.9) {
@@ -54,7 +54,7 @@ fn ppo_learns_the_room_with_empowerment() {
     );
     let vu = e.values(axe, &set, hu, Method::Dp).unwrap();
     let ve = e.values(axe, &set, he, Method::Dp).unwrap();
-    let intrinsic = |s: &fulcrum_shared::State| {
+    let intrinsic = |s: &fulcrum_world::State| {
         let id = e.space.id(s).unwrap() as usize;
         (if axe.held(s) { ve[id] } else { vu[id] }) as f32
     };

@@ -1,11 +1,11 @@
 //! The learner's pieces against reference numbers computed outside candle.
 
 use candle_core::{Device, Tensor};
+use fulcrum_contracts::layout::NetShape;
+use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::net::{logprob_entropy, Net};
 use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
-use fulcrum_shared::layout::NetShape;
-use fulcrum_shared::ppo_config::PpoConfig;
 
 fn shape() -> NetShape {
     NetShape {

@@ -25,14 +25,14 @@
 //! them by 1e-5 or more.
 
 use candle_core::{Device, Tensor};
+use fulcrum_contracts::layout::NetShape;
+use fulcrum_contracts::layout::Offsets;
+use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::adam::Adam;
 use fulcrum_learner::diagnostics::Stats;
 use fulcrum_learner::fused::{Data, Learner};
 use fulcrum_learner::net::{logprob_entropy, mask_bias, Net};
 use fulcrum_learner::ppo::{clipped_grads, loss, Minibatch};
-use fulcrum_shared::layout::NetShape;
-use fulcrum_shared::layout::Offsets;
-use fulcrum_shared::ppo_config::PpoConfig;
 
 /// Two tools: flags [held0, held1, normal, choosing-tool, dir0, dir1]; actions N, E, S, W,
 /// apply, select0, select1.
@@ -127,7 +127,7 @@ fn batch(masked: bool, want: &Want) -> Batch {
     let actions: Vec<u32> = (0..N)
         .map(|s| {
             let m = if masked {
-                fulcrum_shared::mask::action_mask(&FLAG_ROWS[s % 5])
+                fulcrum_world::mask::action_mask(&FLAG_ROWS[s % 5])
             } else {
                 u32::MAX
             };

@@ -6,7 +6,7 @@ use crate::error::PlotError;
 use crate::style::{rgb, Rgb};
 use crate::text::{render_mask, Label};
 use ab_glyph::FontRef;
-use fulcrum_shared::fsio::write_atomic;
+use fulcrum_contracts::fsio::write_atomic;
 use plotters::prelude::*;
 
 pub(crate) fn save_png(path: &Path, rgb: &[u8], width: u32, height: u32) -> Result<(), PlotError> {

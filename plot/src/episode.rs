@@ -108,7 +108,7 @@ pub fn episode_gif(path: &Path, s: &Strip) -> Result<(), PlotError> {
             enc.write_frame(&frame).map_err(encode)?;
         }
     }
-    fulcrum_shared::fsio::write_atomic(path, &bytes).map_err(|error| PlotError::Io {
+    fulcrum_contracts::fsio::write_atomic(path, &bytes).map_err(|error| PlotError::Io {
         path: path.to_path_buf(),
         error,
     })

@@ -23,7 +23,7 @@
 //! [`register_plotters_fonts`] registers the same font with plotters for code that
 //! draws plotters charts with plotters' text (e.g. SVG output).
 //!
-//! Every file is written with [`fulcrum_shared::fsio::write_atomic`]: a half-written PNG never appears at the
+//! Every file is written with [`fulcrum_contracts::fsio::write_atomic`]: a half-written PNG never appears at the
 //! final path.
 //!
 //! | module | what it draws or holds |

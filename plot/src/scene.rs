@@ -9,7 +9,7 @@ use crate::canvas::{draw_err, save_png, Canvas};
 use crate::error::PlotError;
 use crate::style::{rgb, Rgb};
 use crate::text::{HAlign, Label, VAlign};
-use fulcrum_shared::fsio::write_atomic;
+use fulcrum_contracts::fsio::write_atomic;
 use plotters::prelude::*;
 
 /// One element of a picture.

@@ -35,7 +35,7 @@ from gymnasium.vector.utils import batch_space
 
 from fulcrum import _native
 
-# Glyph ids (``fulcrum_shared::env``); tool k on the floor is ``GLYPH_TOOL0 + k``.
+# Glyph ids (``fulcrum_world::env``); tool k on the floor is ``GLYPH_TOOL0 + k``.
 GLYPH_NAMES = (
     "rock",
     "floor",

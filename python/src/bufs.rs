@@ -1,7 +1,7 @@
 //! The step buffers of a `VecCore`: numpy arrays it owns, bound for one call and seen
 //! as slices (each checked for its length) while the GIL is released.
 
-use fulcrum_shared::ObsSpec;
+use fulcrum_world::ObsSpec;
 use numpy::{PyArray1, PyArray2, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -67,7 +67,7 @@ impl Bufs<'_> {
                 states: checked(
                     "states",
                     self.states.as_slice_mut(),
-                    n * fulcrum_shared::msg::STATE_BYTES,
+                    n * fulcrum_contracts::msg::STATE_BYTES,
                 )?,
             })
         }

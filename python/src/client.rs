@@ -8,9 +8,9 @@
 
 use std::time::Duration;
 
+use fulcrum_contracts::msg::{get_name, MAX_BATCH, MAX_IN_FLIGHT, STATE_BYTES, TOOL_ALL};
 use fulcrum_empowerment::service::{object_mask, Ask, Client, ClientError};
-use fulcrum_shared::msg::{get_name, MAX_BATCH, MAX_IN_FLIGHT, STATE_BYTES, TOOL_ALL};
-use fulcrum_shared::State;
+use fulcrum_world::State;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -123,7 +123,7 @@ impl PyServiceClient {
                 "timeout is {timeout} seconds: give a number in (0, 86400]"
             )));
         }
-        if !fulcrum_shared::msg::valid_namespace(namespace) {
+        if !fulcrum_contracts::msg::valid_namespace(namespace) {
             return Err(value_error(format!(
                 "namespace '{namespace}' is not usable: 1 to 64 of A-Z a-z 0-9 _ . -"
             )));
@@ -178,10 +178,10 @@ impl PyServiceClient {
             })? as i32
         };
         let set = fulcrum_empowerment::request::object_set(w, objects).py_err()?;
-        if horizon > fulcrum_shared::MAX_HORIZON {
+        if horizon > fulcrum_world::MAX_HORIZON {
             return Err(value_error(format!(
                 "horizon {horizon} is too large: at most {}",
-                fulcrum_shared::MAX_HORIZON
+                fulcrum_world::MAX_HORIZON
             )));
         }
         let ask = Ask::Query {

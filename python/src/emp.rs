@@ -6,7 +6,7 @@
 //! `World` object and kept.
 
 use fulcrum_empowerment::{request, Engine, Method, ToolSel};
-use fulcrum_shared::{ObjectSet, State, World, MAX_HORIZON};
+use fulcrum_world::{ObjectSet, State, World, MAX_HORIZON};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};

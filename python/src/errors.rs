@@ -7,7 +7,7 @@
 
 use fulcrum_empowerment::service::ClientError;
 use fulcrum_empowerment::EngineError;
-use fulcrum_shared::{DescribeError, WorldError};
+use fulcrum_world::{DescribeError, WorldError};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;

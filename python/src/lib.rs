@@ -39,6 +39,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(world::builtin_worlds, m)?)?;
     errors::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add("STATE_BYTES", fulcrum_shared::msg::STATE_BYTES)?;
+    m.add("STATE_BYTES", fulcrum_contracts::msg::STATE_BYTES)?;
     Ok(())
 }

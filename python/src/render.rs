@@ -2,11 +2,11 @@
 //! cell shows (the observation's glyph ids), with a mark in the middle of the agent and
 //! of tools lying on the floor.
 
-use fulcrum_shared::env::{
+use fulcrum_world::env::{
     G_AGENT, G_BOULDER, G_DOOR_CLOSED, G_DOOR_OPEN, G_FLOOR, G_GOAL, G_ROCK, G_TOOL0, G_TREE,
     G_WALL,
 };
-use fulcrum_shared::{State, World};
+use fulcrum_world::{State, World};
 use numpy::{PyArray1, PyArray3, PyArrayMethods};
 use pyo3::prelude::*;
 

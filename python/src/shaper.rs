@@ -2,7 +2,7 @@
 //! wrapper `fulcrum.wrappers.EmpowermentReward` adds to the task reward.
 //!
 //! For a transition s_t -> s_{t+1} with task reward r_t the total is r_t + beta * b_t,
-//! b_t by form exactly as in training (`fulcrum_shared::intrinsic`, the same code):
+//! b_t by form exactly as in training (`fulcrum_contracts::intrinsic`, the same code):
 //! additive b_t = E(s_{t+1}) (the paper's equation (1)); potential
 //! gamma E(s_{t+1}) - E(s_t); horizon-potential the same with Phi = sum over h of E^h;
 //! first-visit E(s_{t+1}) once per inventory and episode; count 1 / sqrt(N(s_{t+1})).
@@ -17,9 +17,9 @@
 
 use std::str::FromStr;
 
+use fulcrum_contracts::intrinsic::{bonus, Intrinsic, Shaping};
 use fulcrum_empowerment::{request, Engine, EngineError, ToolSel};
-use fulcrum_shared::intrinsic::{bonus, Intrinsic, Shaping};
-use fulcrum_shared::{Episode, MAX_HORIZON};
+use fulcrum_world::{Episode, MAX_HORIZON};
 use numpy::{PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 
@@ -396,7 +396,7 @@ fn next_id(engine: &Engine<'_>, id: u32, a: u8, ep: &Episode) -> u32 {
 /// The id of a state a stochastic world's episode reached: in the state space, which
 /// holds every state of positive probability from the start.
 #[inline]
-fn drawn_id(engine: &Engine<'_>, s: &fulcrum_shared::State) -> u32 {
+fn drawn_id(engine: &Engine<'_>, s: &fulcrum_world::State) -> u32 {
     engine.space.id(s).expect(
         "a sampled outcome is in the state space (it holds every state of positive probability)",
     )

@@ -2,7 +2,7 @@
 //!
 //! Shapes, for N environments of a `W x H` world with `n` tools (|A| = 5 + n), seen in
 //! full (`view = "full"`) or through the `S x S` window around the agent, `S = 2R + 1`
-//! (`view = "crop:R"`, cells beyond the map as rock; `fulcrum_shared::view`):
+//! (`view = "crop:R"`, cells beyond the map as rock; `fulcrum_world::view`):
 //!
 //! | array | dtype | shape | what |
 //! |---|---|---|---|
@@ -26,8 +26,8 @@
 
 use std::sync::Arc;
 
-use fulcrum_shared::mask::action_mask;
-use fulcrum_shared::{Episode, ObsSpec, View, World};
+use fulcrum_world::mask::action_mask;
+use fulcrum_world::{Episode, ObsSpec, View, World};
 use numpy::{
     PyArray1, PyArray2, PyArray3, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods,
 };
@@ -200,7 +200,7 @@ impl VecCore {
             reward: PyArray1::zeros(py, [n], false).unbind(),
             terminated: PyArray1::zeros(py, [n], false).unbind(),
             truncated: PyArray1::zeros(py, [n], false).unbind(),
-            states: PyArray2::zeros(py, [n, fulcrum_shared::msg::STATE_BYTES], false).unbind(),
+            states: PyArray2::zeros(py, [n, fulcrum_contracts::msg::STATE_BYTES], false).unbind(),
             eps: vec![w.reset(); n],
             ended: vec![false; n],
             was_reset: vec![true; n],

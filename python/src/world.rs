@@ -7,9 +7,9 @@
 
 use std::sync::{Arc, OnceLock};
 
+use fulcrum_contracts::msg::STATE_BYTES;
 use fulcrum_empowerment::{request, Engine};
-use fulcrum_shared::msg::STATE_BYTES;
-use fulcrum_shared::{builtin, load_world, parse_world, State, World};
+use fulcrum_world::{builtin, load_world, parse_world, State, World};
 use numpy::PyArrayMethods;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList, PyString};
@@ -208,9 +208,9 @@ impl PyWorld {
         d.set_item(
             "tool",
             match &e.tool {
-                fulcrum_shared::ToolChoice::Auto => "auto".to_string(),
-                fulcrum_shared::ToolChoice::All => "all".to_string(),
-                fulcrum_shared::ToolChoice::Tool(k) => w.tools[*k].name.clone(),
+                fulcrum_world::ToolChoice::Auto => "auto".to_string(),
+                fulcrum_world::ToolChoice::All => "all".to_string(),
+                fulcrum_world::ToolChoice::Tool(k) => w.tools[*k].name.clone(),
             },
         )?;
         d.set_item(

@@ -385,6 +385,6 @@ pub fn arm_flags(name: &str, form: &str, beta: Option<f64>) -> Option<Vec<String
 }
 
 /// The `train` flag of a view (an arm run once per view).
-pub fn view_flags(view: &fulcrum_shared::View) -> Vec<String> {
+pub fn view_flags(view: &fulcrum_world::View) -> Vec<String> {
     vec!["--view".into(), view.to_string()]
 }

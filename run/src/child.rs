@@ -6,18 +6,18 @@ use std::io::Write;
 use std::sync::atomic::Ordering;
 
 use anyhow::Result;
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::metrics::MetricsRow;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::process::{run_learner_with, Hooks, LearnerExit};
 use fulcrum_learner::watch::Notice;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 
 use crate::error::bad;
 use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
 use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
-use fulcrum_shared::lines::{ChildLine, LearnerProgress};
-use fulcrum_shared::load_world;
+use fulcrum_contracts::lines::{ChildLine, LearnerProgress};
+use fulcrum_world::load_world;
 
 /// What the supervisor tells a child process (built into a command line by
 /// [`crate::argv::child`]).

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 
 /// Draw `plots/learning-curve.png` from metrics.csv (None when there is nothing).
 pub fn draw_curve(w: &World, paths: &RunPaths) -> Option<PathBuf> {

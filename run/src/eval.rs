@@ -13,11 +13,11 @@ use std::path::Path;
 
 use anyhow::Result;
 use fulcrum_actors::policy::Policy;
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::evalcsv::{EvalRow, PERIODIC};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::process::Evaluate;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::{View, World};
+use fulcrum_world::{View, World};
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

@@ -11,7 +11,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use crossbeam_channel::{after, never, select, Receiver};
-use fulcrum_shared::lines::ChildLine;
+use fulcrum_contracts::lines::ChildLine;
 
 use crate::process::{send_on_exit, stop_children, stop_events};
 use crate::restart::{Budget, RestartPolicy};

@@ -10,19 +10,19 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
+use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode, RunConfig};
+use fulcrum_contracts::intrinsic::Intrinsic;
+use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::preset::Preset;
-use fulcrum_shared::config::{ChannelTool, EmpowermentModel, HorizonMode, RunConfig};
-use fulcrum_shared::intrinsic::Intrinsic;
-use fulcrum_shared::ppo_config::PpoConfig;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 
 use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use crate::settings::{Fixed, Resumable};
 use fulcrum_empowerment::request::objects_or_default;
-use fulcrum_shared::load_world;
+use fulcrum_world::load_world;
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]
@@ -186,7 +186,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
             const CANNOT: &str =
                 "the run cannot continue from it (start a new run, or restore the file)";
             let params = cfg.shape(&w).params();
-            let extra = match fulcrum_shared::checkpoint::read(&ckpt, &params) {
+            let extra = match fulcrum_contracts::checkpoint::read(&ckpt, &params) {
                 Ok(contents) => contents.extra,
                 Err(e) => return bad(format!("{e}; {CANNOT}")),
             };
@@ -216,14 +216,14 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
     let spec = request.world.clone().unwrap_or_default();
     let w = load_world(&spec)?;
     // A file path is stored absolute so that a resume from elsewhere finds it.
-    let world_spec =
-        if fulcrum_shared::builtin::source(&spec).is_none() && Path::new(&spec).exists() {
-            std::fs::canonicalize(&spec)
-                .map(|p| p.display().to_string())
-                .unwrap_or(spec.clone())
-        } else {
-            spec.clone()
-        };
+    let world_spec = if fulcrum_world::builtin::source(&spec).is_none() && Path::new(&spec).exists()
+    {
+        std::fs::canonicalize(&spec)
+            .map(|p| p.display().to_string())
+            .unwrap_or(spec.clone())
+    } else {
+        spec.clone()
+    };
     // The default form is potential-based (`Intrinsic::default`): it cannot trap.
     let form = a.form().unwrap_or_default();
     let mode = a.horizon_mode.unwrap_or_default();
@@ -379,7 +379,7 @@ fn clean_stale_temps(paths: &RunPaths) -> Result<()> {
         .flatten()
         .filter(|d| d.is_dir())
     {
-        fulcrum_shared::fsio::remove_stale_temps(&d)
+        fulcrum_contracts::fsio::remove_stale_temps(&d)
             .with_context(|| format!("cannot clean temporary files in {}", d.display()))?;
     }
     Ok(())
@@ -391,7 +391,7 @@ fn clean_stale_temps(paths: &RunPaths) -> Result<()> {
 /// the checkpoint are fine: the learner drops and redoes them).
 fn rows_reach_checkpoint(
     paths: &RunPaths,
-    extra: &fulcrum_shared::checkpoint::Extra,
+    extra: &fulcrum_contracts::checkpoint::Extra,
 ) -> Result<()> {
     let upto = extra.counters.get("update").copied().unwrap_or(0);
     if upto == 0 {
@@ -422,6 +422,6 @@ fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
         paths.dir.display(),
         cfg.to_toml()
     );
-    fulcrum_shared::fsio::write_atomic(&paths.config(), text.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&paths.config(), text.as_bytes())
         .with_context(|| format!("cannot write {}", paths.config().display()))
 }

@@ -2,7 +2,7 @@
 //! the stop flag that SIGINT/SIGTERM raise, dying with the parent, starting a child and
 //! waiting for its `ready` line, stopping children, and the machine's cores.
 //!
-//! Every fulcrum process has exactly one stop flag, [`STOP`] (`fulcrum_shared::stop`):
+//! Every fulcrum process has exactly one stop flag, [`STOP`] (`fulcrum_contracts::stop`):
 //! signal handlers raise it, loops poll it between phases and leave cleanly (writing
 //! what they must first).
 
@@ -13,9 +13,9 @@ use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
-use fulcrum_shared::lines::ChildLine;
+use fulcrum_contracts::lines::ChildLine;
 
-pub use fulcrum_shared::stop::{request_stop, signalled, stopping, STOP};
+pub use fulcrum_contracts::stop::{request_stop, signalled, stopping, STOP};
 
 /// A channel that receives one message when a signal raises the stop flag (and at
 /// once if it is already up): the stop flag as an event a `select!` can wait on.
@@ -39,7 +39,7 @@ pub fn stop_events() -> Result<Receiver<()>> {
     unsafe {
         libc::fcntl(read, libc::F_SETFL, 0);
     }
-    let old = fulcrum_shared::stop::set_wake_fd(write);
+    let old = fulcrum_contracts::stop::set_wake_fd(write);
     if old >= 0 {
         // SAFETY: the previous write end is ours and no longer published.
         unsafe {
@@ -84,7 +84,7 @@ pub fn send_on_exit<T: Send + 'static>(child: &Child, tx: Sender<T>, message: T)
 
 /// SIGINT and SIGTERM raise [`STOP`].
 pub fn install_signal_handlers() {
-    fulcrum_shared::stop::install();
+    fulcrum_contracts::stop::install();
 }
 
 /// A child: stop when the process `parent` dies (and if it already has, stop now).
@@ -119,7 +119,7 @@ pub fn allowed_cpus() -> Vec<usize> {
     }
 }
 
-pub use fulcrum_shared::host::hostname;
+pub use fulcrum_contracts::host::hostname;
 
 /// `YYYYmmdd-HHMMSS` in UTC, without a date crate: run and experiment names.
 pub fn utc_stamp() -> String {

@@ -12,11 +12,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use fulcrum_actors::policy::Policy;
+use fulcrum_contracts::checkpoint;
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_empowerment::{Method, ToolSel};
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::checkpoint;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
@@ -43,7 +43,7 @@ pub fn record(
     let tool: ToolSel = tool_sel(w, &e, cfg.tool.as_request(), &set)?;
     let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
     let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;
-    let value = |s: &fulcrum_shared::State| -> Option<f64> {
+    let value = |s: &fulcrum_world::State| -> Option<f64> {
         let id = e.space.id(s)? as usize;
         Some(if tool.held(s) { ve[id] } else { vu[id] })
     };
@@ -107,8 +107,8 @@ pub fn record(
 /// One frame: the glyphs of `s` and, per cell, E for the agent standing there.
 fn frame(
     w: &World,
-    s: &fulcrum_shared::State,
-    value: &dyn Fn(&fulcrum_shared::State) -> Option<f64>,
+    s: &fulcrum_world::State,
+    value: &dyn Fn(&fulcrum_world::State) -> Option<f64>,
     caption: String,
 ) -> fulcrum_plot::Frame {
     let mut glyphs = Vec::with_capacity(w.width * w.height);

@@ -8,10 +8,10 @@
 //! replace the run's.
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
+use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode};
+use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_learner::preset::Preset;
-use fulcrum_shared::config::{ChannelTool, EmpowermentModel, HorizonMode};
-use fulcrum_shared::intrinsic::Intrinsic;
-use fulcrum_shared::View;
+use fulcrum_world::View;
 
 use crate::error::BadRequest;
 
@@ -36,7 +36,7 @@ fn finite(s: &str) -> Result<f64, String> {
 pub struct Fixed {
     /// Weight of the intrinsic reward [default: for horizon-potential 0.4 / max Phi, so that
     /// the shaping along any path pays at most 0.4 (0.05 for a two-state object such as
-    /// the tree at H = 8); 0.1 for first-visit; the world's [empowerment] beta for the
+    /// the tree at H = 8); 0.1 for first-visit; the world's `[empowerment]` beta for the
     /// others].
     #[arg(long, allow_negative_numbers = true, value_parser = finite)]
     pub beta: Option<f64>,

@@ -12,7 +12,7 @@
 //! (`required_amount_of_samples_per_data_segment` and `chunk_layout` in iceoryx2 0.10).
 //! A run has K actor publishers of chunks (`envs x steps` transitions each, [`ChunkLayout`])
 //! and one publisher of the weights (every parameter as f32), configured in
-//! [`fulcrum_shared::traj`]. With empowerment, the service's server holds
+//! [`fulcrum_contracts::traj`]. With empowerment, the service's server holds
 //! `max_clients x 2 x in_flight x (response buffer + borrowed + loaned)` responses (a
 //! run's service takes its actors and a few more, `RunConfig::service_clients`; the
 //! weights' subscribers are its actors and a few more too) and
@@ -27,13 +27,13 @@
 
 use std::path::Path;
 
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::msg::{EmpRequest, EmpResponse, MAX_IN_FLIGHT};
-use fulcrum_shared::traj::{
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::msg::{EmpRequest, EmpResponse, MAX_IN_FLIGHT};
+use fulcrum_contracts::traj::{
     ChunkHeader, ChunkLayout, WeightsHeader, CHUNKS_LOANED, CHUNK_QUEUE, CHUNK_SUBSCRIBERS,
     WEIGHTS_BUFFER, WEIGHTS_LOANED,
 };
-use fulcrum_shared::World;
+use fulcrum_world::World;
 
 use crate::error::bad;
 

@@ -32,8 +32,8 @@ use std::time::{Duration, Instant};
 use anyhow::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
 use fulcrum_actors::SERVICE_START_LIMIT;
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::paths::RunPaths;
-use fulcrum_shared::config::RunConfig;
 
 use crate::argv::{self, ChildKind, ChildRequest};
 use crate::error::bad;
@@ -44,9 +44,9 @@ use crate::process::{
 use crate::progress::Progress;
 use crate::restart::{Budget, RestartPolicy};
 use crate::watchdog::Watchdog;
+use fulcrum_contracts::lines::{ChildLine, LearnerProgress};
 use fulcrum_learner::trap::TrapDetector;
 use fulcrum_learner::watch::Notice;
-use fulcrum_shared::lines::{ChildLine, LearnerProgress};
 
 /// Exit code of a learner that stopped early on request (after a set number of updates).
 pub const EXIT_PAUSED: i32 = 3;

@@ -10,7 +10,7 @@
 //!
 //! Who stalled comes from the learner's notices ([`fulcrum_learner::watch::Notice`]),
 //! which it prints on its stdout as lines of the child protocol
-//! ([`fulcrum_shared::lines::ChildLine`]): `waiting SECS ACTORS` once a second while it
+//! ([`fulcrum_contracts::lines::ChildLine`]): `waiting SECS ACTORS` once a second while it
 //! waits for chunks, `stalled ACTOR SECS late|refused` when it goes on without a local
 //! actor. A learner that says nothing for several seconds is itself the one that
 //! stalled. (`trap LIMIT SINCE LENGTH SHARE BONUS WORTH DWELL` is no stall: the beacon-trap detector's
@@ -130,7 +130,7 @@ mod tests {
 
     #[test]
     fn notices_survive_their_line() {
-        use fulcrum_shared::lines::ChildLine;
+        use fulcrum_contracts::lines::ChildLine;
         for n in [
             Notice::Waiting {
                 waited_s: 2.5,

@@ -143,11 +143,11 @@ fn an_experiments_runs_parse_as_train_requests() {
             assert_eq!(r.out, Some(PathBuf::from("/e/runs/additive/seed-9")));
             assert_eq!(
                 r.fixed.form(),
-                Some(fulcrum_shared::intrinsic::Intrinsic::HorizonPotential)
+                Some(fulcrum_contracts::intrinsic::Intrinsic::HorizonPotential)
             );
             assert_eq!(
                 r.fixed.empowerment_model,
-                Some(fulcrum_shared::config::EmpowermentModel::Deterministic)
+                Some(fulcrum_contracts::config::EmpowermentModel::Deterministic)
             );
         }
         other => panic!("{other:?}"),
@@ -161,7 +161,7 @@ fn an_experiments_runs_parse_as_train_requests() {
 /// Every named arm of an experiment parses as a train request of the form it names.
 #[test]
 fn every_arm_is_train_flags() {
-    use fulcrum_shared::intrinsic::Intrinsic;
+    use fulcrum_contracts::intrinsic::Intrinsic;
     for name in argv::ARMS.split(", ") {
         let flags = argv::arm_flags(name, "potential", Some(0.25)).unwrap();
         let job = TrainJob::New(NewRun {

@@ -152,7 +152,7 @@ pub struct ServeArgs {
     /// Clients the service takes at once. Its shared memory grows with them (about
     /// 1.2 MiB a client); `fulcrum train` makes its service for its own actors and 8
     /// more.
-    #[arg(long, default_value_t = fulcrum_shared::msg::MAX_CLIENTS)]
+    #[arg(long, default_value_t = fulcrum_contracts::msg::MAX_CLIENTS)]
     pub max_clients: usize,
 }
 

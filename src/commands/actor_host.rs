@@ -36,10 +36,10 @@ use fulcrum_run::restart::RestartPolicy;
 pub fn run(a: &ActorHostArgs) -> Result<()> {
     install_signal_handlers();
     let k = a.actors.unwrap_or_else(|| cores().saturating_sub(1).max(1));
-    if k == 0 || k > fulcrum_shared::traj::MAX_ACTORS {
+    if k == 0 || k > fulcrum_contracts::traj::MAX_ACTORS {
         return bad(format!(
             "--actors {k} must be 1 to {}",
-            fulcrum_shared::traj::MAX_ACTORS
+            fulcrum_contracts::traj::MAX_ACTORS
         ));
     }
     if !(a.restart_window.is_finite() && a.restart_window > 0.0 && a.restart_window < 1e9) {

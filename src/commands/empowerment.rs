@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::Result;
 use fulcrum_empowerment::{set_name, Engine, Method, ToolSel};
-use fulcrum_shared::{ObjectKind, ObjectSet, State, World};
+use fulcrum_world::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
@@ -13,7 +13,7 @@ use fulcrum_empowerment::request::{
     engine, holding_mask, matrix_columns, object_set, objects_or_default, tool_sel,
 };
 use fulcrum_run::{bad, BadRequest};
-use fulcrum_shared::load_world as world;
+use fulcrum_world::load_world as world;
 
 /// Run an `empowerment` subcommand.
 pub fn run(cmd: EmpCmd) -> Result<()> {
@@ -164,7 +164,7 @@ fn landscape(a: &LandscapeArgs) -> Result<()> {
         let rock: Vec<Vec<bool>> = (0..w.height)
             .map(|y| {
                 (0..w.width)
-                    .map(|x| w.terrain(x as i32, y as i32) == fulcrum_shared::Terrain::Rock)
+                    .map(|x| w.terrain(x as i32, y as i32) == fulcrum_world::Terrain::Rock)
                     .collect()
             })
             .collect();
@@ -515,8 +515,8 @@ fn query_service(
     states: &[State],
     lines: &[(String, String)],
 ) -> Result<()> {
+    use fulcrum_contracts::msg::{self, item, TOOL_ALL};
     use fulcrum_empowerment::service::{mask_set, object_mask, Ask, Client};
-    use fulcrum_shared::msg::{self, item, TOOL_ALL};
     if !msg::valid_namespace(&a.namespace) {
         return bad(format!(
             "--namespace '{}' must be 1 to 64 characters of A-Z, a-z, 0-9, '_', '-', '.'",

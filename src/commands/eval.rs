@@ -3,10 +3,10 @@
 //! 95% intervals and appends a row to `RUN/eval.csv`.
 
 use anyhow::{Context, Result};
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_run::bad;
 use fulcrum_run::eval::{evaluate, summarise, Estimate};
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::load_world;
+use fulcrum_world::load_world;
 
 use crate::cli::EvalArgs;
 

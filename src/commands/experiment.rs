@@ -12,8 +12,8 @@ use fulcrum_run::experiment::{prepare_set, Arm, ExperimentRequest, SetRequest, S
 use fulcrum_run::plan::plan;
 use fulcrum_run::process::utc_stamp;
 use fulcrum_run::{bad, BadRequest};
-use fulcrum_shared::generate::{GenError, GenSet};
-use fulcrum_shared::View;
+use fulcrum_world::generate::{GenError, GenSet};
+use fulcrum_world::View;
 
 use crate::cli::{ExperimentArgs, TrainArgs};
 

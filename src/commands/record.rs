@@ -10,10 +10,10 @@
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
 use anyhow::Result;
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_run::bad;
 use fulcrum_run::record::record;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::load_world;
+use fulcrum_world::load_world;
 
 use crate::cli::RecordArgs;
 

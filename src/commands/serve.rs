@@ -4,19 +4,19 @@ use std::io::Write;
 use std::time::Duration;
 
 use anyhow::Result;
+use fulcrum_contracts::lines::ChildLine;
+use fulcrum_contracts::msg;
 use fulcrum_empowerment::service::{serve, ServeConfig, Tables};
 use fulcrum_empowerment::{set_name, Method, ToolSel};
-use fulcrum_shared::lines::ChildLine;
-use fulcrum_shared::msg;
 
 use crate::cli::ServeArgs;
+use fulcrum_contracts::config::EmpowermentModel;
 use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::child::load_run;
 use fulcrum_run::{bad, BadRequest};
-use fulcrum_shared::config::EmpowermentModel;
-use fulcrum_shared::load_world as world;
-use fulcrum_shared::World;
+use fulcrum_world::load_world as world;
+use fulcrum_world::World;
 
 /// The most clients `--max-clients` may ask for (about 1.2 GiB of shared memory).
 const MAX_SERVE_CLIENTS: usize = 1024;
@@ -91,15 +91,15 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         .unwrap_or(w.empowerment.horizon_unequipped);
     let he = a.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped);
     for h in [hu, he] {
-        if h > fulcrum_shared::MAX_HORIZON {
+        if h > fulcrum_world::MAX_HORIZON {
             return bad(format!(
                 "horizon {h} is too large: at most {}",
-                fulcrum_shared::MAX_HORIZON
+                fulcrum_world::MAX_HORIZON
             ));
         }
     }
     let auto = matches!(a.tool.as_deref(), Some("auto"))
-        || (a.tool.is_none() && w.empowerment.tool == fulcrum_shared::ToolChoice::Auto);
+        || (a.tool.is_none() && w.empowerment.tool == fulcrum_world::ToolChoice::Auto);
     if auto {
         // Log the column the selection came from.
         let m = e.matrix(std::slice::from_ref(&set), hu, he, Method::Dp)?;
@@ -165,7 +165,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
 /// every count the service answers (a test of counts shared between processes).
 pub fn visit_process(ns: &str, world: &str, state: &str, times: usize) -> Result<()> {
     use fulcrum_empowerment::service::{Ask, Client};
-    let w = fulcrum_shared::load_world(world)?;
+    let w = fulcrum_world::load_world(world)?;
     let s = w.parse_state(state)?;
     let mut c = Client::connect(ns, &w, std::time::Duration::from_secs(30))?;
     let mut out = String::new();
@@ -173,7 +173,7 @@ pub fn visit_process(ns: &str, world: &str, state: &str, times: usize) -> Result
         c.submit(Ask::Visit, std::slice::from_ref(&s))?;
         let b = c.recv()?;
         anyhow::ensure!(
-            b.status.first() == Some(&fulcrum_shared::msg::item::OK),
+            b.status.first() == Some(&fulcrum_contracts::msg::item::OK),
             "the service refused the state"
         );
         out.push_str(&format!("{}\n", b.values[0]));

@@ -5,11 +5,11 @@
 //! run directory, [`fulcrum_run::supervisor`] runs the children until the run ends.
 
 use anyhow::{Context, Result};
+use fulcrum_contracts::config::HorizonMode;
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_run::plan::{resolve, Planned};
 use fulcrum_run::supervisor::{supervise, Options, Outcome};
 use fulcrum_run::{bad, Interrupted};
-use fulcrum_shared::config::HorizonMode;
 
 use crate::cli::{ChildArgs, TrainArgs};
 

@@ -3,14 +3,14 @@
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{parse_world, ObjectSet, ToolChoice};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{parse_world, ObjectSet, ToolChoice};
 use serde_json::json;
 
 use crate::cli::{GenerateArgs, WorldCmd};
+use fulcrum_contracts::fsio::write_atomic;
 use fulcrum_empowerment::request::engine;
-use fulcrum_shared::fsio::write_atomic;
-use fulcrum_shared::load_world as world;
+use fulcrum_world::load_world as world;
 
 /// Run a `world` subcommand.
 pub fn run(cmd: WorldCmd) -> Result<()> {
@@ -39,18 +39,18 @@ fn show(name: &str, as_json: bool) -> Result<()> {
         s => fulcrum_empowerment::set_name(&w, s),
     });
     // The rules of the tools in play that act with a probability below 1.
-    let chancy: Vec<&fulcrum_shared::Rule> = w
+    let chancy: Vec<&fulcrum_world::Rule> = w
         .rules
         .iter()
         .filter(|r| r.p < 1.0 && w.tools.iter().any(|t| t.kind == r.tool))
         .collect();
-    let rule_text = |r: &fulcrum_shared::Rule| {
+    let rule_text = |r: &fulcrum_world::Rule| {
         format!(
             "{} {} {} -> {}",
             r.tool,
             r.target.name(),
-            fulcrum_shared::world::cond_name(r.target, r.from),
-            fulcrum_shared::world::cond_name(r.target, r.to)
+            fulcrum_world::world::cond_name(r.target, r.from),
+            fulcrum_world::world::cond_name(r.target, r.to)
         )
     };
     if as_json {

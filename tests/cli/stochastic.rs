@@ -136,7 +136,7 @@ impl Drop for Serve {
 fn serve_answers_a_stochastic_world() {
     use fulcrum_empowerment::service::{Ask, Client};
     use fulcrum_empowerment::{Engine, Limits, ToolSel};
-    use fulcrum_shared::{load_world, ObjectSet};
+    use fulcrum_world::{load_world, ObjectSet};
     let w = load_world("exp1-tree-slip").unwrap();
     let e = Engine::new(&w, Limits::default()).unwrap();
     let tree = ObjectSet::Objects(vec![w.object_index("tree").unwrap()]);
@@ -160,7 +160,7 @@ fn serve_answers_a_stochastic_world() {
 fn serve_computes_a_noisy_world_as_if_deterministic_when_asked() {
     use fulcrum_empowerment::service::{Ask, Client};
     use fulcrum_empowerment::{Engine, Limits, ToolSel};
-    use fulcrum_shared::{load_world, ObjectSet};
+    use fulcrum_world::{load_world, ObjectSet};
     let noisy = load_world("exp1-tree-slip").unwrap();
     let plain = load_world("exp1-tree").unwrap();
     let e = Engine::new(&plain, Limits::default()).unwrap();

@@ -10,9 +10,9 @@ use std::time::Duration;
 use fulcrum_bridge::zenoh::qos::CongestionControl;
 use fulcrum_bridge::zenoh::{self, Wait};
 use fulcrum_bridge::Hello;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::msg::{kind, wire, EmpRequest};
-use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, WeightsHeader};
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::msg::{kind, wire, EmpRequest};
+use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, WeightsHeader};
 
 use super::{free_port, host_rows, Proc, SMALL};
 use crate::util::{fulcrum, pids_with, wait_until, TempDir};
@@ -84,7 +84,7 @@ fn listening_sockets(pid: u32) -> usize {
 /// A chunk for `actor` with the run's shape, every action set to `action`, and `extra`
 /// bytes of body beyond the layout.
 fn chunk(cfg: &RunConfig, hello: &Hello, actor: u32, action: u8, extra: usize) -> Vec<u8> {
-    let world = fulcrum_shared::parse_world(&hello.world_source, &hello.world_name).unwrap();
+    let world = fulcrum_world::parse_world(&hello.world_source, &hello.world_name).unwrap();
     let shape = cfg.shape(&world);
     let layout = ChunkLayout {
         envs: cfg.envs_per_actor,

@@ -7,10 +7,10 @@ use std::process::{Child, Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
+use fulcrum_contracts::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
 use fulcrum_empowerment::service::{Ask, Client, ClientError};
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
-use fulcrum_shared::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
-use fulcrum_shared::{load_world, ObjectSet, State, World};
+use fulcrum_world::{load_world, ObjectSet, State, World};
 use rand::{Rng, SeedableRng};
 
 use crate::util::{fulcrum, is_ready, namespace};

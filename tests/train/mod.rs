@@ -351,8 +351,8 @@ fn resumed_equals_uninterrupted_on(world: &str, tag: &str, extra: &[&str]) {
     assert_eq!(ra, rb);
     // And the final weights are the same bits.
     let dev = candle_core::Device::Cpu;
-    let w = fulcrum_shared::load_world(world).unwrap();
-    let shape = fulcrum_shared::config::RunConfig::load(&a.join("config.toml"))
+    let w = fulcrum_world::load_world(world).unwrap();
+    let shape = fulcrum_contracts::config::RunConfig::load(&a.join("config.toml"))
         .unwrap()
         .shape(&w);
     let flat = |dir: &Path| {
@@ -1143,7 +1143,7 @@ fn nothing_of_a_run_uses_a_network_socket() {
 
 #[test]
 fn chunks_of_another_run_or_world_are_refused_and_counted() {
-    use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
+    use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
     fulcrum_empowerment::service::quiet_ipc_logs();
     let dir = TempDir::fresh("foreign");
     let d = dir.to_str().unwrap();
@@ -1176,7 +1176,7 @@ fn chunks_of_another_run_or_world_are_refused_and_counted() {
             std::thread::sleep(Duration::from_millis(20));
         }
     };
-    let w = fulcrum_shared::load_world("room").unwrap();
+    let w = fulcrum_world::load_world("room").unwrap();
     let spec = w.obs_spec();
     let layout = ChunkLayout {
         envs: 4,

@@ -5,15 +5,15 @@
 use std::path::Path;
 use std::time::Duration;
 
+use fulcrum_contracts::config::{EmpowermentModel, RunConfig};
 use fulcrum_learner::metrics::read_metrics;
-use fulcrum_shared::config::{EmpowermentModel, RunConfig};
 
 use super::{finish, resumed_equals_uninterrupted_on, train};
 use crate::util::{fulcrum, TempDir};
 
 /// The room of the training tests with the dynamics given (`""` for none).
 fn room_with(dynamics: &str) -> String {
-    let room = fulcrum_shared::builtin::source("room").expect("room is built in");
+    let room = fulcrum_world::builtin::source("room").expect("room is built in");
     format!("{room}\n{dynamics}")
 }
 

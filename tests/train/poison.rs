@@ -5,12 +5,12 @@
 
 use std::time::{Duration, Instant};
 
+use fulcrum_contracts::checkpoint;
+use fulcrum_contracts::config::RunConfig;
+use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames};
+use fulcrum_contracts::valid::check_record;
 use fulcrum_learner::metrics::read_metrics;
-use fulcrum_shared::checkpoint;
-use fulcrum_shared::config::RunConfig;
-use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames};
-use fulcrum_shared::valid::check_record;
-use fulcrum_shared::World;
+use fulcrum_world::World;
 use iceoryx2::prelude::*;
 
 use super::{assert_contiguous, finish, train, wait_rows, SMALL};
@@ -89,7 +89,7 @@ fn poisoned_chunks_are_refused_and_counted_while_the_run_goes_on() {
     );
     wait_rows(&dir, 3, Duration::from_secs(60));
     let ns = learner_namespace(d);
-    let w = fulcrum_shared::load_world("room").unwrap();
+    let w = fulcrum_world::load_world("room").unwrap();
     let spec = w.obs_spec();
     let layout = ChunkLayout {
         envs: 4,
@@ -215,7 +215,7 @@ fn a_checkpoint_with_invalid_world_records_resumes_with_fresh_episodes() {
     );
     let (status, err, _) = finish(c, Duration::from_secs(120));
     assert!(status.success(), "{err}");
-    let w = fulcrum_shared::load_world("room").unwrap();
+    let w = fulcrum_world::load_world("room").unwrap();
     let cfg = RunConfig::load(&dir.join("config.toml")).unwrap();
     let path = dir.join("checkpoints/latest.safetensors");
     let params = cfg.shape(&w).params();

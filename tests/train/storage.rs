@@ -306,9 +306,9 @@ kill -INT $P; wait $P
     let err = read(&out.join("err"));
     assert!(run.status.success() || err.contains("interrupted"), "{err}");
     let used: u64 = read(&out.join("used")).trim().parse().expect("du ran");
-    let cfg = fulcrum_shared::config::RunConfig::load(&mnt.join("run/config.toml"))
+    let cfg = fulcrum_contracts::config::RunConfig::load(&mnt.join("run/config.toml"))
         .expect("the run's config");
-    let world = fulcrum_shared::load_world(&cfg.world).unwrap();
+    let world = fulcrum_world::load_world(&cfg.world).unwrap();
     let need = fulcrum_run::sizes::shared_memory(&cfg, &world);
     let mib = |b: u64| b as f64 / (1 << 20) as f64;
     assert!(

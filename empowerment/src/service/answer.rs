@@ -1,6 +1,6 @@
 //! What answers a service's requests, whoever it is.
 
-use fulcrum_shared::msg::{Describe, EmpRequest, EmpResponse};
+use fulcrum_contracts::msg::{Describe, EmpRequest, EmpResponse};
 
 /// What answers a service's requests: its own [`Tables`](super::Tables), or a bridge that asks the
 /// service of another host (feature `multihost`).

@@ -8,10 +8,10 @@
 use std::collections::VecDeque;
 use std::time::{Duration, Instant};
 
-use fulcrum_shared::msg::{
+use fulcrum_contracts::msg::{
     self, kind, status, Describe, EmpRequest, EmpResponse, Names, MAX_BATCH, MAX_IN_FLIGHT,
 };
-use fulcrum_shared::{State, World};
+use fulcrum_world::{State, World};
 use iceoryx2::port::client::Client as IoxClient;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;

@@ -1,8 +1,8 @@
 //! How requests and the DESCRIBE answer name tools and object sets: a tool is its
 //! index or [`TOOL_ALL`], an object set is a bit mask ([`AGENT_BIT`] for the agent).
 
-use fulcrum_shared::msg::{self, Describe, AGENT_BIT, TOOL_ALL};
-use fulcrum_shared::{ObjectSet, World};
+use fulcrum_contracts::msg::{self, Describe, AGENT_BIT, TOOL_ALL};
+use fulcrum_world::{ObjectSet, World};
 
 use super::config::ServeConfig;
 use crate::engine::{Engine, ToolSel};

@@ -2,7 +2,7 @@
 
 use std::time::Duration;
 
-use fulcrum_shared::ObjectSet;
+use fulcrum_world::ObjectSet;
 
 use crate::engine::ToolSel;
 
@@ -26,7 +26,7 @@ pub struct ServeConfig {
     pub cache_bytes: usize,
     /// How long to poll for the next request before blocking.
     pub spin: Duration,
-    /// Clients the service takes at once ([`fulcrum_shared::msg::MAX_CLIENTS`] by
+    /// Clients the service takes at once ([`fulcrum_contracts::msg::MAX_CLIENTS`] by
     /// default; a training run's, its actors and spares).
     pub max_clients: usize,
 }

@@ -8,7 +8,7 @@
 use std::sync::Arc;
 use std::time::Duration;
 
-use fulcrum_shared::msg::status;
+use fulcrum_contracts::msg::status;
 
 /// An iceoryx2 error of any of its types, as a service or a client keeps it.
 pub(super) type IpcSource = Box<dyn std::error::Error + Send + Sync + 'static>;

@@ -18,8 +18,8 @@
 //! fast answer costs no wake-up, an idle process burns no core.
 //!
 //! A bad request never stops the service: it gets an error status (see
-//! [`fulcrum_shared::msg::status`]), and states that are not in the state space get
-//! [`fulcrum_shared::msg::item::NOT_IN_SPACE`].
+//! [`fulcrum_contracts::msg::status`]), and states that are not in the state space get
+//! [`fulcrum_contracts::msg::item::NOT_IN_SPACE`].
 //!
 //! # Contents
 //!

@@ -5,7 +5,7 @@
 //! carry the wake-ups (clients wake the server, the server wakes each client), since
 //! request-response ports have no file descriptor to wait on.
 
-use fulcrum_shared::msg::{EmpRequest, EmpResponse, Names, MAX_CLIENTS, MAX_IN_FLIGHT};
+use fulcrum_contracts::msg::{EmpRequest, EmpResponse, Names, MAX_CLIENTS, MAX_IN_FLIGHT};
 use iceoryx2::node::NodeState;
 use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;

@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
-use fulcrum_shared::msg::{self, status, Describe, EmpRequest, EmpResponse, Names};
+use fulcrum_contracts::msg::{self, status, Describe, EmpRequest, EmpResponse, Names};
 use iceoryx2::active_request::ActiveRequest;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::{ListenerKey, Notifier};

@@ -1,4 +1,4 @@
-//! The service's stop flag is the process's one flag, [`fulcrum_shared::stop`]:
+//! The service's stop flag is the process's one flag, [`fulcrum_contracts::stop`]:
 //! SIGINT and SIGTERM, and [`request_stop`] from within.
 //!
 //! iceoryx2 installs its own SIGINT/SIGTERM handlers for its wait set and keeps only the
@@ -7,8 +7,8 @@
 //! wait set's epoll either. So our handler goes on top of iceoryx2's, records the signal
 //! in our flag and then calls iceoryx2's; the serving loop checks the flag every 100 ms.
 
-use fulcrum_shared::stop;
-pub use fulcrum_shared::stop::request_stop;
+use fulcrum_contracts::stop;
+pub use fulcrum_contracts::stop::request_stop;
 
 /// Whether SIGINT or SIGTERM reached a process that serves (or [`request_stop`] was
 /// called).

@@ -3,9 +3,9 @@
 
 use std::collections::VecDeque;
 
-use fulcrum_shared::msg::TOOL_ALL;
-use fulcrum_shared::msg::{item, kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH};
-use fulcrum_shared::{ObjectSet, State, MAX_HORIZON};
+use fulcrum_contracts::msg::TOOL_ALL;
+use fulcrum_contracts::msg::{item, kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH};
+use fulcrum_world::{ObjectSet, State, MAX_HORIZON};
 
 use super::answer::Answer;
 use super::codes::{describe, mask_set};

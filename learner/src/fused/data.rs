@@ -4,7 +4,7 @@
 
 use candle_core::{bail, Result};
 
-use fulcrum_shared::layout::NetShape;
+use fulcrum_contracts::layout::NetShape;
 
 /// One rollout prepared for the update.
 #[derive(Debug)]
@@ -28,7 +28,7 @@ pub struct Data<'a> {
     pub(super) values: &'a [f32],
     pub(super) advantages: &'a [f32],
     pub(super) returns: &'a [f32],
-    /// Per sample, the allowed actions ([`fulcrum_shared::mask::action_mask`]); `None`
+    /// Per sample, the allowed actions ([`fulcrum_world::mask::action_mask`]); `None`
     /// without masking.
     pub(super) masks: Option<Vec<u32>>,
     /// V_int old and the intrinsic returns, with the intrinsic value head.
@@ -175,7 +175,7 @@ impl<'a> Data<'a> {
         let masks: Vec<u32> = self
             .flags
             .chunks_exact(f.max(1))
-            .map(fulcrum_shared::mask::action_mask_f32)
+            .map(fulcrum_world::mask::action_mask_f32)
             .collect();
         if let Some(i) = (0..self.actions.len()).find(|&i| masks[i] >> self.actions[i] & 1 == 0) {
             bail!(

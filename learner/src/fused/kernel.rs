@@ -1,7 +1,7 @@
 //! The hand-written forward and backward pass of one minibatch (the math of
 //! [`crate::fused`]'s module docs), and the dense loops it is made of.
 
-use fulcrum_shared::ppo_config::PpoConfig;
+use fulcrum_contracts::ppo_config::PpoConfig;
 
 use super::{Data, Learner};
 use crate::diagnostics::Stats;

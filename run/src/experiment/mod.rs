@@ -112,7 +112,7 @@ pub struct ExperimentRequest {
     pub world: String,
     /// The world's name.
     pub world_name: String,
-    /// [`fulcrum_shared::World::content_hash`], hex.
+    /// [`fulcrum_world::World::content_hash`], hex.
     pub world_hash: String,
     /// Env steps per run (whole updates).
     pub steps: u64,
@@ -258,7 +258,7 @@ fn run_one(a: &ExperimentRequest) -> Result<Done> {
         "# fulcrum experiment; run the same command again to resume or extend it.\n{}",
         toml::to_string(&spec).context("cannot encode experiment.toml")?
     );
-    fulcrum_shared::fsio::write_atomic(&spec_path, text.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&spec_path, text.as_bytes())
         .with_context(|| format!("cannot write {}", spec_path.display()))?;
 
     // The pairs of this command (the spec may hold more arms from earlier commands).

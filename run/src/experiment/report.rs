@@ -12,9 +12,9 @@ use crate::stats::Welch;
 pub(super) fn write(summary: &Summary, dir: &Path) -> Result<String> {
     let md = markdown(summary);
     let json = serde_json::to_string_pretty(summary).context("cannot encode summary.json")?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), md.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&dir.join("summary.md"), md.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     draw(summary, dir)?;
     Ok(md)

@@ -115,7 +115,7 @@ pub fn prepare_set(
                 ))
             }
             Ok(_) => {}
-            Err(_) => fulcrum_shared::fsio::write_atomic(&path, text.as_bytes())
+            Err(_) => fulcrum_contracts::fsio::write_atomic(&path, text.as_bytes())
                 .with_context(|| format!("cannot write {}", path.display()))?,
         }
         paths.push(std::fs::canonicalize(&path).unwrap_or(path));
@@ -124,7 +124,7 @@ pub fn prepare_set(
         "# fulcrum experiment over a set of worlds; run the same command again to resume it.\n{}",
         toml::to_string(&spec).context("cannot encode set.toml")?
     );
-    fulcrum_shared::fsio::write_atomic(&spec_path, text.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&spec_path, text.as_bytes())
         .with_context(|| format!("cannot write {}", spec_path.display()))?;
     Ok((
         SetDir {
@@ -238,9 +238,9 @@ pub fn run_set(req: &SetRequest) -> Result<String> {
     let markdown = markdown(&summary, first.smooth);
     let dir = &req.dir.path;
     let json = serde_json::to_string_pretty(&summary).context("cannot encode summary.json")?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
-    fulcrum_shared::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
+    fulcrum_contracts::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     if !failed.is_empty() {
         anyhow::bail!(

@@ -4,10 +4,10 @@
 use std::path::Path;
 
 use anyhow::{Context, Result};
+use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::metrics::{read_metrics, MetricsRow};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::trap::TrapDetector;
-use fulcrum_shared::config::RunConfig;
 use serde::Serialize;
 
 use super::{state, Arm, Job, Spec, State, FINAL_FRACTION, GRID};
@@ -251,7 +251,7 @@ fn trap_updates(dir: &Path, rows: &[MetricsRow]) -> u64 {
         dir: dir.to_path_buf(),
     };
     let replayed = RunConfig::load(&paths.config()).ok().and_then(|cfg| {
-        let world = fulcrum_shared::load_world(&cfg.world).ok()?;
+        let world = fulcrum_world::load_world(&cfg.world).ok()?;
         let mut d = TrapDetector::new(cfg.form(), cfg.beta, &world);
         Some(rows.iter().filter(|r| d.observe(r).is_some()).count() as u64)
     });

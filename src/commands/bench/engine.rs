@@ -6,8 +6,8 @@ use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
 use fulcrum_empowerment::{enumerate, propagate, Engine, Limits, Method, StateSpace, ToolSel};
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{load_world, parse_world, ObjectSet, World};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{load_world, parse_world, ObjectSet, World};
 
 use super::{median_ms, peak_mib, Figure};
 

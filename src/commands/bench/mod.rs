@@ -19,7 +19,7 @@ mod scaling;
 mod service;
 mod training;
 
-use fulcrum_shared::fsio::write_atomic;
+use fulcrum_contracts::fsio::write_atomic;
 
 use engine::{empowerment_big, empowerment_exp2};
 use service::service_figures;

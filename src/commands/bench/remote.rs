@@ -21,11 +21,11 @@ use anyhow::{ensure, Context, Result};
 use fulcrum_bridge::zenoh::handlers::FifoChannel;
 use fulcrum_bridge::zenoh::qos::{CongestionControl, Priority};
 use fulcrum_bridge::zenoh::Wait;
+use fulcrum_contracts::lines::ChildLine;
+use fulcrum_contracts::msg::{kind, EmpRequest, EmpResponse};
+use fulcrum_contracts::traj::ChunkHeader;
 use fulcrum_empowerment::{Engine, Limits};
-use fulcrum_shared::lines::ChildLine;
-use fulcrum_shared::load_world;
-use fulcrum_shared::msg::{kind, EmpRequest, EmpResponse};
-use fulcrum_shared::traj::ChunkHeader;
+use fulcrum_world::load_world;
 
 use super::service::{sample_states, ServeChild};
 use super::{percentile, Figure};

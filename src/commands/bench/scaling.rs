@@ -14,8 +14,8 @@ use std::time::Instant;
 use anyhow::{ensure, Context, Result};
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
 use fulcrum_run::argv::{NewRun, TrainJob};
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{parse_world, ObjectSet};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{parse_world, ObjectSet};
 
 use super::Figure;
 use fulcrum_plot::{band_chart_png, Band, BandChart};

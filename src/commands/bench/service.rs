@@ -7,7 +7,7 @@ use anyhow::{ensure, Context, Result};
 use fulcrum_empowerment::service::{Ask, Client, ServeConfig, Tables};
 use fulcrum_empowerment::{Engine, Limits, ToolSel};
 use fulcrum_run::process::{spawn_until_ready, Ready};
-use fulcrum_shared::load_world;
+use fulcrum_world::load_world;
 
 use super::{cpu_seconds, percentile, Figure};
 
@@ -45,7 +45,7 @@ impl Drop for ServeChild {
 }
 
 /// Sample states of a space, seeded.
-pub(super) fn sample_states(e: &Engine, n: usize) -> Vec<fulcrum_shared::State> {
+pub(super) fn sample_states(e: &Engine, n: usize) -> Vec<fulcrum_world::State> {
     let step = (e.space.len() / n).max(1);
     (0..n)
         .map(|i| *e.space.state(((i * step) % e.space.len()) as u32))
@@ -73,7 +73,7 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
 /// Round trips of one client: p50 and p99 for 1 and 256 states, and after an idle gap.
 fn round_trips(
     c: &mut Client,
-    batch256: &[fulcrum_shared::State],
+    batch256: &[fulcrum_world::State],
     rounds: usize,
     figs: &mut Vec<Figure>,
 ) -> Result<()> {
@@ -131,7 +131,7 @@ fn throughput(
     mut c: Client,
     ns: &str,
     world: &str,
-    batch256: &[fulcrum_shared::State],
+    batch256: &[fulcrum_world::State],
     secs: f64,
     figs: &mut Vec<Figure>,
 ) -> Result<()> {
@@ -200,8 +200,8 @@ fn idle_cpu(serve: &ServeChild, quick: bool, figs: &mut Vec<Figure>) {
 
 /// The floors: the same lookups in-process, and a Unix datagram ping-pong.
 fn floors(
-    w: &fulcrum_shared::World,
-    batch256: &[fulcrum_shared::State],
+    w: &fulcrum_world::World,
+    batch256: &[fulcrum_world::State],
     rounds: usize,
     secs: f64,
     figs: &mut Vec<Figure>,
@@ -220,18 +220,18 @@ fn floors(
         horizon_equipped: 6,
         cache_bytes: 1 << 20,
         spin: std::time::Duration::ZERO,
-        max_clients: fulcrum_shared::msg::MAX_CLIENTS,
+        max_clients: fulcrum_contracts::msg::MAX_CLIENTS,
     };
     let mut tables = Tables::new(Engine::new(w, Limits::default())?, cfg)?;
-    let mut req = Box::new(fulcrum_shared::msg::EmpRequest {
+    let mut req = Box::new(fulcrum_contracts::msg::EmpRequest {
         world_hash: w.content_hash(),
-        kind: fulcrum_shared::msg::kind::LOOKUP,
+        kind: fulcrum_contracts::msg::kind::LOOKUP,
         count: 256,
         tool: 0,
         horizon: 0,
         objects: 0,
         seq: 0,
-        states: [[0; fulcrum_shared::msg::STATE_BYTES]; fulcrum_shared::msg::MAX_BATCH],
+        states: [[0; fulcrum_contracts::msg::STATE_BYTES]; fulcrum_contracts::msg::MAX_BATCH],
     });
     for (i, s) in batch256.iter().enumerate() {
         req.states[i] = s.to_bytes();
@@ -273,7 +273,7 @@ fn floors(
 }
 
 /// An all-zero response (valid: plain data).
-pub(super) fn zeroed_response() -> fulcrum_shared::msg::EmpResponse {
+pub(super) fn zeroed_response() -> fulcrum_contracts::msg::EmpResponse {
     // SAFETY: EmpResponse is plain integers, floats and bytes; all-zero is a valid value.
     unsafe { std::mem::zeroed() }
 }
@@ -281,11 +281,11 @@ pub(super) fn zeroed_response() -> fulcrum_shared::msg::EmpResponse {
 /// Look up `states` repeatedly for `secs`, pipelined; returns states answered.
 pub(super) fn lookup_for(
     c: &mut fulcrum_empowerment::service::Client,
-    states: &[fulcrum_shared::State],
+    states: &[fulcrum_world::State],
     secs: f64,
 ) -> Result<f64> {
     use fulcrum_empowerment::service::Ask;
-    let big: Vec<fulcrum_shared::State> = states
+    let big: Vec<fulcrum_world::State> = states
         .iter()
         .cycle()
         .take(states.len() * 64)

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::{ensure, Context, Result};
 use fulcrum_run::argv::{self, NewRun, TrainJob};
-use fulcrum_shared::{load_world, View, World};
+use fulcrum_world::{load_world, View, World};
 
 use super::{median_ms, Figure};
 
@@ -68,7 +68,7 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
         ),
     });
     // One PPO update on a batch of 1024 samples (8 envs x 128 steps).
-    let shape = fulcrum_shared::layout::shape_for(&w, View::Full, 64);
+    let shape = fulcrum_contracts::layout::shape_for(&w, View::Full, 64);
     let spec = w.obs_spec();
     let net = fulcrum_learner::net::Net::new(shape, 1, &candle_core::Device::Cpu)?;
     let mut adam = fulcrum_learner::adam::Adam::new(&net)?;
@@ -91,7 +91,7 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
         .map(|i| ((i * 37) % 11) as f32 / 10.0 - 0.5)
         .collect();
     let ret: Vec<f32> = adv.clone();
-    let cfg = fulcrum_shared::ppo_config::PpoConfig::default();
+    let cfg = fulcrum_contracts::ppo_config::PpoConfig::default();
     let data = fulcrum_learner::local::UpdateData {
         glyphs: &glyphs,
         flags: &flags,
@@ -126,7 +126,7 @@ pub(super) fn training_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()
 /// the two sides, so the figure is the cost of the path itself, not of waiting on a
 /// full queue (a full queue makes a publisher back off, by design).
 pub(super) fn chunk_transport(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
-    use fulcrum_shared::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
+    use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, TrainNames};
     use iceoryx2::prelude::*;
     let w = load_world("exp1-tree")?;
     let spec = w.obs_spec();
@@ -213,7 +213,9 @@ pub(super) fn train_command(job: &TrainJob) -> Result<std::process::Command> {
 /// Runs the job (a new run in DIR, then removes DIR) and returns the env steps per
 /// second of each update after the first (which pays for start-up), and the run's
 /// resolved configuration.
-pub(super) fn train_sps(job: &TrainJob) -> Result<(Vec<f64>, fulcrum_shared::config::RunConfig)> {
+pub(super) fn train_sps(
+    job: &TrainJob,
+) -> Result<(Vec<f64>, fulcrum_contracts::config::RunConfig)> {
     let TrainJob::New(NewRun { out: Some(dir), .. }) = job else {
         anyhow::bail!("a bench run needs a new run directory");
     };
@@ -229,7 +231,7 @@ pub(super) fn train_sps(job: &TrainJob) -> Result<(Vec<f64>, fulcrum_shared::con
         String::from_utf8_lossy(&out.stderr)
     );
     let rows = fulcrum_learner::metrics::read_metrics(&dir.join("metrics.csv"))?;
-    let cfg = fulcrum_shared::config::RunConfig::load(&dir.join("config.toml"))?;
+    let cfg = fulcrum_contracts::config::RunConfig::load(&dir.join("config.toml"))?;
     let _ = std::fs::remove_dir_all(dir);
     let sps: Vec<f64> = rows.iter().skip(1).map(|r| r.sps).collect();
     ensure!(!sps.is_empty(), "the run made too few updates");

@@ -2,10 +2,10 @@
 //! world could have written are refused with one line, and whatever is accepted the
 //! dynamics and the observation take without a panic (proptest, bounded cases).
 
-use fulcrum_shared::chunk_check::{check_chunk, BadChunk};
-use fulcrum_shared::traj::{ChunkHeader, ChunkLayout, EnvRecord, Section, ENV_BYTES};
-use fulcrum_shared::valid::check_record;
-use fulcrum_shared::{load_world, State, World, BOULDER_DESTROYED};
+use fulcrum_contracts::chunk_check::{check_chunk, BadChunk};
+use fulcrum_contracts::traj::{ChunkHeader, ChunkLayout, EnvRecord, Section, ENV_BYTES};
+use fulcrum_contracts::valid::check_record;
+use fulcrum_world::{load_world, State, World, BOULDER_DESTROYED};
 use proptest::prelude::*;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -151,7 +151,7 @@ proptest! {
                 w.observe(&s, &mut g, &mut f);
                 prop_assert!(g.iter().all(|&x| (x as usize) < spec.glyphs));
                 for a in 0..w.num_actions() as u8 {
-                    let mut ep = fulcrum_shared::Episode { state: s, t: 0, rewarded: 0 };
+                    let mut ep = fulcrum_world::Episode { state: s, t: 0, rewarded: 0 };
                     w.env_step(&mut ep, a);
                     w.observe_update(&s, &ep.state, &mut g.clone(), &mut f.clone());
                     prop_assert_eq!(w.check_state(&ep.state), Ok(()));

@@ -3,11 +3,11 @@
 //! Every expected value is derived by hand from `docs/world.md` (the reasoning is in the
 //! comments), never read back from the code under test. States are built either by
 //! stepping from a parsed world or by writing the packed fields documented in
-//! `shared/src/state.rs` directly: a tree, wall or door slot holds 0 intact/closed,
+//! `world/src/state.rs` directly: a tree, wall or door slot holds 0 intact/closed,
 //! 1 open, 2 destroyed; a boulder slot holds its cell `y * width + x`, or `u16::MAX`
 //! once destroyed.
 
-use fulcrum_shared::{parse_world, Episode, Mode, State, World};
+use fulcrum_world::{parse_world, Episode, Mode, State, World};
 
 // Action numbers (`docs/world.md`): N=0, E=1, S=2, W=3, apply=4, select_k = 5 + k.
 const N: u8 = 0;
@@ -61,7 +61,7 @@ fn same_but_mode(a: &State, b: &State) {
 
 #[test]
 fn action_numbers_are_those_of_world_md() {
-    use fulcrum_shared as f;
+    use fulcrum_world as f;
     assert_eq!(
         [f::NORTH, f::EAST, f::SOUTH, f::WEST, f::APPLY, f::SELECT0],
         [N, E, S, W, APPLY, SEL]

@@ -96,7 +96,7 @@ pub const TOOL_ALL: i32 = -1;
 #[type_name("fulcrum::EmpRequest")]
 #[repr(C)]
 pub struct EmpRequest {
-    /// [`crate::World::content_hash`] of the world the client speaks of.
+    /// [`fulcrum_world::World::content_hash`] of the world the client speaks of.
     pub world_hash: u64,
     /// One of [`kind`].
     pub kind: u32,
@@ -121,7 +121,7 @@ pub struct EmpRequest {
 pub struct Describe {
     /// World name, NUL padded.
     pub world: [u8; 64],
-    /// [`crate::World::content_hash`].
+    /// [`fulcrum_world::World::content_hash`].
     pub world_hash: u64,
     /// States in the state space.
     pub states: u64,

@@ -9,7 +9,7 @@
 //! | section | accepted |
 //! |---|---|
 //! | header and sizes, actions, done bytes, every float finite | [`ChunkLayout::validate`](crate::traj::ChunkLayout::validate) |
-//! | actions, in a run with action masking | each allowed by its transition's flags ([`crate::mask`]: an actor never samples another) |
+//! | actions, in a run with action masking | each allowed by its transition's flags ([`fulcrum_world::mask`]: an actor never samples another) |
 //! | glyphs | each below the world's glyph count (`9 + tools`) |
 //! | flags | each 0 or 1, exactly one mode flag set per transition |
 //! | terminated, truncated | never both at one transition; the header's episode and success counts are their counts |
@@ -25,10 +25,10 @@
 //! rewards and values. A property test in the learner (`intake.rs`) feeds the real
 //! update with mutated chunks that this check accepts.
 
-use crate::mask::action_mask as action_mask_of;
 use crate::traj::{ChunkHeader, ChunkLayout, Section, ENV_BYTES};
 use crate::valid::{check_record, InvalidRecord};
-use crate::World;
+use fulcrum_world::mask::action_mask as action_mask_of;
+use fulcrum_world::World;
 
 /// The lowest log-probability accepted for a taken action. An actor samples an action
 /// with probability below `e^-50` (about 2e-22) essentially never; below it the ratio

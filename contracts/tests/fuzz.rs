@@ -2,8 +2,8 @@
 //! descriptions and trajectory chunks. Nothing may panic; every refusal is one line.
 //! (World files are fuzzed in `parse.rs`, service requests in the empowerment crate.)
 
-use fulcrum_shared::traj::{ChunkHeader, ChunkLayout, Section};
-use fulcrum_shared::{load_world, World};
+use fulcrum_contracts::traj::{ChunkHeader, ChunkLayout, Section};
+use fulcrum_world::{load_world, World};
 use proptest::prelude::*;
 
 fn exp3() -> World {

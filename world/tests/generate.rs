@@ -5,8 +5,8 @@
 
 use std::collections::{HashSet, VecDeque};
 
-use fulcrum_shared::generate::{fewest_steps_to_task, GenSet, GEN_SET_DEFAULTS};
-use fulcrum_shared::{parse_world, Episode, World};
+use fulcrum_world::generate::{fewest_steps_to_task, GenSet, GEN_SET_DEFAULTS};
+use fulcrum_world::{parse_world, Episode, World};
 
 fn world(map: &str) -> World {
     let text = format!(
@@ -19,7 +19,7 @@ fn world(map: &str) -> World {
 /// terminates, searching (state, objects paid) with the episode's own step.
 fn episode_search(w: &World) -> Option<u32> {
     let start = w.reset();
-    let mut seen: HashSet<(fulcrum_shared::State, u16)> = HashSet::new();
+    let mut seen: HashSet<(fulcrum_world::State, u16)> = HashSet::new();
     seen.insert((start.state, start.rewarded));
     let mut queue = VecDeque::from([start]);
     while let Some(ep) = queue.pop_front() {
@@ -81,7 +81,7 @@ fn every_world_of_the_experiment_set_is_solvable_within_an_episode() {
             if seeds.contains(&seed) {
                 continue;
             }
-            let text = fulcrum_shared::generate::generate(&fulcrum_shared::generate::GenParams {
+            let text = fulcrum_world::generate::generate(&fulcrum_world::generate::GenParams {
                 seed,
                 ..set.params
             })

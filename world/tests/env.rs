@@ -1,12 +1,12 @@
 //! Episodes (task rewards, termination, truncation), the observation encoding, and the
 //! text form of states. Expected values are derived by hand from `docs/world.md` and
-//! the encoding documented at the top of `shared/src/env.rs`.
+//! the encoding documented at the top of `world/src/env.rs`.
 
 use std::collections::{HashSet, VecDeque};
 
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::world::ObjectKind;
-use fulcrum_shared::{parse_world, Mode, State, Task, World};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::world::ObjectKind;
+use fulcrum_world::{parse_world, Mode, State, Task, World};
 use proptest::prelude::*;
 
 // Actions (`docs/world.md`).
@@ -398,7 +398,7 @@ fn describe_and_parse_state_round_trip_on_every_reachable_state() {
     );
     for w in [
         obs_world(),
-        fulcrum_shared::load_world("exp3").unwrap(),
+        fulcrum_world::load_world("exp3").unwrap(),
         breaker,
     ] {
         let all = reachable(&w);
@@ -556,11 +556,11 @@ proptest! {
 /// bolts.
 #[test]
 fn incremental_observation_equals_the_full_one() {
-    use fulcrum_shared::generate::{generate, GenParams};
+    use fulcrum_world::generate::{generate, GenParams};
     use rand::{Rng, SeedableRng};
-    let mut worlds: Vec<fulcrum_shared::World> = fulcrum_shared::builtin::NAMES
+    let mut worlds: Vec<fulcrum_world::World> = fulcrum_world::builtin::NAMES
         .iter()
-        .map(|n| fulcrum_shared::load_world(n).unwrap())
+        .map(|n| fulcrum_world::load_world(n).unwrap())
         .collect();
     for seed in 0..6 {
         let p = GenParams {
@@ -571,7 +571,7 @@ fn incremental_observation_equals_the_full_one() {
             rock: 0.1,
             seed,
         };
-        worlds.push(fulcrum_shared::parse_world(&generate(&p).unwrap(), "gen").unwrap());
+        worlds.push(fulcrum_world::parse_world(&generate(&p).unwrap(), "gen").unwrap());
     }
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(9);
     for w in &worlds {

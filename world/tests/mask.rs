@@ -4,8 +4,8 @@
 //! (normal mode) or into "cancel back to normal, nothing else happens" (a prompt), and
 //! every action it allows changes the mode or the world as the table says.
 
-use fulcrum_shared::mask::action_mask;
-use fulcrum_shared::{load_world, State, World};
+use fulcrum_world::mask::action_mask;
+use fulcrum_world::{load_world, State, World};
 use proptest::prelude::*;
 
 /// The state after a random walk of `steps` actions (drawn from `seeds`) from the start.

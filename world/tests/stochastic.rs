@@ -4,8 +4,8 @@
 //!
 //! Lines and columns are counted by hand from the texts below, one line per string.
 
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::{load_world, parse_world, State, World, WorldError, EAST, NORTH, SOUTH, WEST};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::{load_world, parse_world, State, World, WorldError, EAST, NORTH, SOUTH, WEST};
 
 const FILE: &str = "test.toml";
 
@@ -77,7 +77,7 @@ fn dynamics_and_p_are_read() {
     assert!(w.is_stochastic());
     assert_eq!(w.slip, 0.0);
     // It set the default rule's p and added no rule.
-    assert_eq!(w.rules.len(), fulcrum_shared::world::default_rules().len());
+    assert_eq!(w.rules.len(), fulcrum_world::world::default_rules().len());
     let r = w
         .rules
         .iter()
@@ -269,7 +269,7 @@ fn generated(seed: u64) -> World {
 // episode stepped with draws never asks for one (so runs consume no draws).
 #[test]
 fn deterministic_worlds_take_no_draws() {
-    let mut worlds: Vec<World> = fulcrum_shared::builtin::NAMES
+    let mut worlds: Vec<World> = fulcrum_world::builtin::NAMES
         .iter()
         .map(|n| load_world(n).unwrap())
         .collect();
@@ -324,7 +324,7 @@ fn stochastic_episodes_take_one_draw_per_step() {
 
 #[test]
 fn outcome_probabilities_sum_to_one() {
-    for name in fulcrum_shared::builtin::STOCHASTIC {
+    for name in fulcrum_world::builtin::STOCHASTIC {
         let w = load_world(name).unwrap();
         let mut rng = SplitMix(9);
         let mut s = w.initial;

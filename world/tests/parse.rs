@@ -4,9 +4,9 @@
 //! Lines and columns are 1-based and counted by hand from the texts below (columns in
 //! characters); each test writes its text one line per string so the count is plain.
 
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::world::{ObjectKind, Terrain};
-use fulcrum_shared::{load_world, parse_world, Task, World, WorldError};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::world::{ObjectKind, Terrain};
+use fulcrum_world::{load_world, parse_world, Task, World, WorldError};
 use proptest::prelude::*;
 
 const FILE: &str = "test.toml";
@@ -535,7 +535,7 @@ fn tools_are_in_tools_order() {
 
 #[test]
 fn empowerment_section() {
-    use fulcrum_shared::{ObjectSet, ToolChoice};
+    use fulcrum_world::{ObjectSet, ToolChoice};
     let base = lines(&[
         "name = \"t\"",
         "map = \"\"\"",
@@ -818,7 +818,7 @@ fn parse_and_use(text: &str) {
 }
 
 fn bases() -> Vec<&'static str> {
-    let b = |n| fulcrum_shared::builtin::source(n).unwrap();
+    let b = |n| fulcrum_world::builtin::source(n).unwrap();
     vec![RICH, b("exp1-tree"), b("exp2"), b("exp3"), b("room")]
 }
 

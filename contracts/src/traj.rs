@@ -48,9 +48,9 @@ use iceoryx2::prelude::*;
 use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use iceoryx2::service::port_factory::publish_subscribe::PortFactory as PubSubFactory;
 
-use crate::env::Episode;
 use crate::ipc_error::IpcError;
-use crate::state::State;
+use fulcrum_world::env::Episode;
+use fulcrum_world::state::State;
 
 /// Most actor processes of one run.
 pub const MAX_ACTORS: usize = 64;
@@ -96,7 +96,7 @@ pub const ENV_BYTES: usize = 56;
 pub struct ChunkHeader {
     /// The run's tag ([`run_tag`] of the namespace): chunks of other runs are refused.
     pub run: u64,
-    /// [`crate::World::content_hash`].
+    /// [`fulcrum_world::World::content_hash`].
     pub world_hash: u64,
     /// The actor's chunk counter (per incarnation, from 0).
     pub seq: u64,

@@ -15,8 +15,8 @@ use crate::checkpoint::Extra;
 use crate::intrinsic::Intrinsic;
 use crate::layout::{shape_for, NetShape};
 use crate::ppo_config::PpoConfig;
-use crate::view::View;
-use crate::world::World;
+use fulcrum_world::view::View;
+use fulcrum_world::world::World;
 
 /// The resolved configuration of a run.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -88,13 +88,13 @@ pub struct RunConfig {
     /// it (the actor rejoins with its next chunk).
     #[serde(default = "default_stall_timeout")]
     pub stall_timeout_s: f64,
-    /// Per-mode action masking ([`crate::mask`]) in the actors' sampling and the
+    /// Per-mode action masking ([`fulcrum_world::mask`]) in the actors' sampling and the
     /// learner's log-probabilities and entropy. A configuration written before masking
     /// existed reads as `false`, the way those runs were trained.
     #[serde(default)]
     pub action_mask: bool,
     /// What of the map the policy sees (`full`, or `crop:R`, the window of radius R
-    /// around the agent; [`crate::view`]). A configuration written before views existed
+    /// around the agent; [`fulcrum_world::view`]). A configuration written before views existed
     /// reads as `full`, the way those runs were trained.
     #[serde(default)]
     pub view: View,
@@ -199,7 +199,7 @@ pub enum EmpowermentModel {
     #[default]
     Exact,
     /// The same map with nothing left to chance (slip 0, every rule's p 1;
-    /// [`crate::World::without_chance`]): the values an agent that ignores the noise
+    /// [`fulcrum_world::World::without_chance`]): the values an agent that ignores the noise
     /// would compute.
     Deterministic,
 }
@@ -484,10 +484,10 @@ impl RunConfig {
             (self.horizon_unequipped, "the horizon without the tool"),
             (self.horizon_equipped, "the horizon with the tool"),
         ] {
-            if self.empowerment && (h == 0 || h > crate::parse::MAX_HORIZON) {
+            if self.empowerment && (h == 0 || h > fulcrum_world::parse::MAX_HORIZON) {
                 return Err(format!(
                     "{which} {h} must be 1 to {}",
-                    crate::parse::MAX_HORIZON
+                    fulcrum_world::parse::MAX_HORIZON
                 ));
             }
         }

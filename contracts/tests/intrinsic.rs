@@ -1,7 +1,7 @@
 //! The intrinsic reward forms on hand-made transitions; expected values are worked out
 //! by hand in the comments (gamma = 0.99).
 
-use fulcrum_shared::intrinsic::{bonus, Intrinsic, Shaping};
+use fulcrum_contracts::intrinsic::{bonus, Intrinsic, Shaping};
 
 fn shaping(form: Intrinsic, phi_reset: f32) -> Shaping {
     Shaping {

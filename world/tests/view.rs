@@ -5,9 +5,9 @@
 //! observation ([`World::observe`]), which draws the map by another path than the
 //! crop's per-cell lookups.
 
-use fulcrum_shared::generate::{generate, GenParams};
-use fulcrum_shared::view::MAX_CROP_RADIUS;
-use fulcrum_shared::{load_world, parse_world, View, World};
+use fulcrum_world::generate::{generate, GenParams};
+use fulcrum_world::view::MAX_CROP_RADIUS;
+use fulcrum_world::{load_world, parse_world, View, World};
 use rand::{Rng, SeedableRng};
 
 /// Rock's glyph id (`docs/world.md`).
@@ -18,7 +18,7 @@ const AGENT: u8 = 3;
 /// The built-in worlds and generated ones with boulders, doors and bolts; one generated
 /// world smaller than a radius-4 window in both directions.
 fn worlds() -> Vec<World> {
-    let mut v: Vec<World> = fulcrum_shared::builtin::NAMES
+    let mut v: Vec<World> = fulcrum_world::builtin::NAMES
         .iter()
         .map(|n| load_world(n).unwrap())
         .collect();
@@ -41,7 +41,7 @@ fn worlds() -> Vec<World> {
 }
 
 /// The window of radius `r` cut from the full observation, rock outside the map.
-fn reference_crop(w: &World, s: &fulcrum_shared::State, r: usize) -> (Vec<u8>, Vec<u8>) {
+fn reference_crop(w: &World, s: &fulcrum_world::State, r: usize) -> (Vec<u8>, Vec<u8>) {
     let spec = w.obs_spec();
     let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
     w.observe(s, &mut g, &mut f);

@@ -20,8 +20,8 @@
 //! policy.v_int.b   (1)        only with the intrinsic value head
 //! ```
 
-use crate::view::View;
-use crate::world::World;
+use fulcrum_world::view::View;
+use fulcrum_world::world::World;
 
 /// Sizes of the network.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
