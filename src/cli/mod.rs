@@ -159,13 +159,20 @@ pub struct ServeArgs {
 /// `fulcrum world ...`
 #[derive(Debug, Subcommand)]
 pub enum WorldCmd {
-    /// Map, tools, objects, actions and state-space size of a world.
+    /// Map, tools, objects, actions and state-space size of a world, or of one layout of
+    /// a world family.
     Show {
-        /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
+        /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip); or a family (a file with a [family] table, or the built-in toolbox, two-rooms).
         world: String,
+        /// The layout of a family to show (its seed) [default: 0].
+        #[arg(long, value_name = "N")]
+        layout: Option<u64>,
         /// Print JSON instead of text.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "toml")]
         json: bool,
+        /// Print the world (a family's layout) as an ordinary world file.
+        #[arg(long)]
+        toml: bool,
     },
     /// Write a random valid world file (an open room with tools and objects).
     Generate(GenerateArgs),

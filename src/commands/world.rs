@@ -3,6 +3,7 @@
 use std::time::Instant;
 
 use anyhow::{Context, Result};
+use fulcrum_world::family::{is_family, load_family};
 use fulcrum_world::generate::{generate, GenParams};
 use fulcrum_world::{parse_world, ObjectSet, ToolChoice};
 use serde_json::json;
@@ -15,13 +16,43 @@ use fulcrum_world::load_world as world;
 /// Run a `world` subcommand.
 pub fn run(cmd: WorldCmd) -> Result<()> {
     match cmd {
-        WorldCmd::Show { world: name, json } => show(&name, json),
+        WorldCmd::Show {
+            world: name,
+            layout,
+            json,
+            toml,
+        } => show(&name, layout, json, toml),
         WorldCmd::Generate(a) => gen(&a),
     }
 }
 
-fn show(name: &str, as_json: bool) -> Result<()> {
-    let w = world(name)?;
+fn show(name: &str, layout: Option<u64>, as_json: bool, as_toml: bool) -> Result<()> {
+    let (w, family) = if is_family(name) {
+        let f = load_family(name)?;
+        let n = layout.unwrap_or(0);
+        let text = f.layout_text(n)?;
+        if as_toml {
+            print!("{text}");
+            return Ok(());
+        }
+        (
+            parse_world(&text, &format!("{}-{n}", f.name))?,
+            Some((f, n)),
+        )
+    } else {
+        if layout.is_some() {
+            return Err(fulcrum_run::BadRequest(format!(
+                "--layout names a layout of a world family, and '{name}' is one world"
+            ))
+            .into());
+        }
+        let w = world(name)?;
+        if as_toml {
+            print!("{}", w.source);
+            return Ok(());
+        }
+        (w, None)
+    };
     let t0 = Instant::now();
     let e = engine(&w)?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
@@ -71,6 +102,7 @@ fn show(name: &str, as_json: bool) -> Result<()> {
             "states": e.space.len(),
             "normal_states": e.normal_states(),
             "hash": format!("{:016x}", w.content_hash()),
+            "family": family.as_ref().map(|(f, n)| json!({"name": f.name, "layout": n, "fitting_tools": f.fitting_tools(&w).iter().map(|&k| w.tools[k].name.clone()).collect::<Vec<_>>()})),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -79,6 +111,23 @@ fn show(name: &str, as_json: bool) -> Result<()> {
         "world {} ({}x{}, episodes of at most {} steps)",
         w.name, w.width, w.height, w.max_steps
     );
+    if let Some((f, n)) = &family {
+        let fits: Vec<String> = f
+            .fitting_tools(&w)
+            .iter()
+            .map(|&k| w.tools[k].name.clone())
+            .collect();
+        println!(
+            "family       {}, layout {n} (task objects drawn from {}; tools that fit this one: {})",
+            f.name,
+            f.objects
+                .iter()
+                .map(|o| o.name())
+                .collect::<Vec<_>>()
+                .join(", "),
+            fits.join(", ")
+        );
+    }
     print!("{}", w.render(&w.initial));
     let tools: Vec<String> = w
         .tools

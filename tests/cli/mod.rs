@@ -4,6 +4,7 @@
 use serde_json::Value;
 
 /// Stochastic worlds through the binary.
+mod family;
 mod stochastic;
 
 use crate::util::{run as fulcrum, TempDir};

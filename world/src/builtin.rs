@@ -12,6 +12,20 @@ pub const NAMES: [&str; 5] = ["exp1-tree", "exp1-wall", "exp2", "exp3", "room"];
 /// rule of their tools at p = 0.8.
 pub const STOCHASTIC: [&str; 2] = ["exp1-tree-slip", "exp2-slip"];
 
+/// Names of the built-in world families (`docs/world.md`, "World families"): `toolbox`
+/// (one room, a task object and three tools) and `two-rooms` (the task object behind a
+/// locked door).
+pub const FAMILIES: [&str; 2] = ["toolbox", "two-rooms"];
+
+/// The text of a built-in family.
+pub fn family_source(name: &str) -> Option<&'static str> {
+    Some(match name {
+        "toolbox" => include_str!("../../worlds/toolbox.toml"),
+        "two-rooms" => include_str!("../../worlds/two-rooms.toml"),
+        _ => return None,
+    })
+}
+
 /// Every built-in name: [`NAMES`], then [`STOCHASTIC`].
 pub fn all_names() -> impl Iterator<Item = &'static str> {
     NAMES.into_iter().chain(STOCHASTIC)

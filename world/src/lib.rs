@@ -20,6 +20,8 @@ pub mod chance;
 pub mod describe;
 /// Episodes, task rewards and the learner's observation encoding.
 pub mod env;
+/// World families: layouts drawn by seed.
+pub mod family;
 /// Random valid world files.
 pub mod generate;
 /// A fast hasher for state-keyed maps.

@@ -67,7 +67,7 @@ pub fn load_world(name_or_path: &str) -> Result<World, WorldError> {
         })?;
         return parse_world(&text, name_or_path);
     }
-    match crate::builtin::source(name_or_path) {
+    match crate::builtin::source(name_or_path).or(crate::builtin::family_source(name_or_path)) {
         Some(text) => parse_world(text, name_or_path),
         None => Err(WorldError::Unknown(name_or_path.to_string())),
     }
@@ -171,13 +171,13 @@ impl FloorBoundary for str {
     }
 }
 
-struct Ctx<'a> {
-    text: &'a str,
-    file: &'a str,
+pub(crate) struct Ctx<'a> {
+    pub(crate) text: &'a str,
+    pub(crate) file: &'a str,
 }
 
 impl Ctx<'_> {
-    fn at(&self, offset: usize, msg: impl Into<String>) -> WorldError {
+    pub(crate) fn at(&self, offset: usize, msg: impl Into<String>) -> WorldError {
         let (line, col) = line_col(self.text, offset);
         WorldError::At {
             file: self.file.to_string(),
@@ -186,7 +186,7 @@ impl Ctx<'_> {
             msg: msg.into(),
         }
     }
-    fn file(&self, msg: impl Into<String>) -> WorldError {
+    pub(crate) fn file(&self, msg: impl Into<String>) -> WorldError {
         WorldError::File {
             file: self.file.to_string(),
             msg: msg.into(),
@@ -197,6 +197,11 @@ impl Ctx<'_> {
 /// Parse and validate a world file's text. `file` names it in errors.
 pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     let cx = Ctx { text, file };
+    if crate::family::is_family_text(text) {
+        return Err(cx.file(
+            "this is a world family (a layout per seed), not one world: show a layout with `fulcrum world show FAMILY --layout N`, or write one out with --toml",
+        ));
+    }
     let raw: RawWorld = toml::from_str(text).map_err(|e| {
         let msg = e.message().trim().trim_end_matches('.').to_string();
         match e.span() {
