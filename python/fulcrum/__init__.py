@@ -3,7 +3,8 @@
 The Rust core (the same crates as the ``fulcrum`` command line) does the work; this
 package gives it the shapes Python researchers use:
 
-- :class:`World`: a tool world from a built-in name or a file (map, tools, objects,
+- :class:`World`: a tool world from a built-in name or a file, or a layout of a world
+  family (``World.layout("toolbox", seed)``; :func:`builtin_families`) (map, tools, objects,
   actions, states as text or as 38 packed bytes);
 - :func:`make_vec` / :class:`FulcrumVectorEnv`: a ``gymnasium.vector.VectorEnv`` whose
   steps run in Rust with the GIL released, writing numpy arrays in place;
@@ -30,6 +31,7 @@ from fulcrum._native import (
     World,
     WrongWorld,
     __version__,
+    builtin_families,
     builtin_worlds,
 )
 from fulcrum import empowerment, wrappers
@@ -52,6 +54,7 @@ __all__ = [
     "World",
     "WrongWorld",
     "__version__",
+    "builtin_families",
     "builtin_worlds",
     "empowerment",
     "make_vec",

@@ -37,6 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(emp::trace, m)?)?;
     m.add_function(wrap_pyfunction!(emp::value, m)?)?;
     m.add_function(wrap_pyfunction!(world::builtin_worlds, m)?)?;
+    m.add_function(wrap_pyfunction!(world::builtin_families, m)?)?;
     errors::register(m)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("STATE_BYTES", fulcrum_contracts::msg::STATE_BYTES)?;

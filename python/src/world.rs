@@ -122,6 +122,15 @@ impl PyWorld {
         Ok(PyWorld::from_world(parse_world(text, file).py_err()?))
     }
 
+    /// Layout `seed` of a world family (a built-in family such as `"toolbox"`, or a file
+    /// with a `[family]` table): the same family and seed give the same world on every
+    /// machine, as `fulcrum world show FAMILY --layout SEED`.
+    #[staticmethod]
+    fn layout(family: &str, seed: u64) -> PyResult<Self> {
+        let f = fulcrum_world::family::load_family(family).py_err()?;
+        Ok(PyWorld::from_world(f.layout(seed).py_err()?))
+    }
+
     /// The world's name.
     #[getter]
     fn name(&self) -> &str {
@@ -366,4 +375,10 @@ pub(crate) fn action_arg(w: &World, arg: &Bound<'_, PyAny>) -> PyResult<u8> {
 #[pyfunction]
 pub fn builtin_worlds() -> Vec<&'static str> {
     builtin::NAMES.to_vec()
+}
+
+/// The names of the built-in world families (`World.layout(name, seed)`).
+#[pyfunction]
+pub fn builtin_families() -> Vec<&'static str> {
+    builtin::FAMILIES.to_vec()
 }
