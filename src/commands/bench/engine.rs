@@ -313,3 +313,47 @@ pub(super) fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
     });
     Ok(())
 }
+
+/// Layouts never seen: for each of the first 1,000 layouts of `toolbox` (quick: 100),
+/// the time from the layout seed to the whole table the empowerment service would answer
+/// from for train's default form (the layout drawn and parsed, its states enumerated, the
+/// matrix's tool selection for the task object, the potential Phi = sum over h <= 8 of
+/// E^h in every state): median and 99th percentile, and the table's size. What a
+/// service computing E for a layout on first sight would pay per layout.
+pub(super) fn family_layouts(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    use fulcrum_world::family::load_family;
+    let f = load_family("toolbox")?;
+    let n = if quick { 100 } else { 1000 };
+    let (mut ms, mut states) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for seed in 0..n as u64 {
+        let t0 = Instant::now();
+        let w = f.layout(seed)?;
+        let engine = Engine::new(&w, Limits::default())?;
+        let set = w
+            .empowerment
+            .objects
+            .clone()
+            .context("a family's layout names its task object")?;
+        let tool = fulcrum_empowerment::request::tool_sel(&w, &engine, None, &set)?;
+        let table = engine.lookup_values(tool, &set, 8, 3, true)?;
+        ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        ensure!(table.len() == engine.space.len(), "one value per state");
+        states.push(table.len() as f64);
+    }
+    ms.sort_by(f64::total_cmp);
+    states.sort_by(f64::total_cmp);
+    figs.push(Figure {
+        zero_ok: false,
+        name: "toolbox layout never seen: whole Phi table".into(),
+        value: super::percentile(&ms, 0.5),
+        unit: "ms",
+        note: format!(
+            "(median of {n} layouts, p99 {:.2} ms; {:.0}-{:.0} states, table {:.0} KiB at most; goal <= 5 ms)",
+            super::percentile(&ms, 0.99),
+            states[0],
+            states[n - 1],
+            states[n - 1] * 4.0 / 1024.0
+        ),
+    });
+    Ok(())
+}

@@ -21,7 +21,7 @@ mod training;
 
 use fulcrum_contracts::fsio::write_atomic;
 
-use engine::{empowerment_big, empowerment_exp2};
+use engine::{empowerment_big, empowerment_exp2, family_layouts};
 use service::service_figures;
 pub use service::{client_process, pingpong_echo};
 use training::{chunk_transport, end_to_end, robustness, time_to_solve, training_figures};
@@ -127,6 +127,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else {
         empowerment_exp2(reps, a.quick, &mut figs)?;
         empowerment_big(a.quick, &mut figs)?;
+        family_layouts(a.quick, &mut figs)?;
         service_figures(a.quick, &mut figs)?;
         training_figures(a.quick, &mut figs)?;
         chunk_transport(a.quick, &mut figs)?;
