@@ -4,6 +4,7 @@
 use std::process::ExitCode;
 
 use clap::Parser;
+use fulcrum_run::Kind;
 
 // candle frees large per-op buffers; glibc's allocator turns that into page faults
 // (candle allocates and frees a buffer per op).
@@ -61,6 +62,8 @@ fn main() -> ExitCode {
         .init();
     match commands::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        // A child process of a run ends with the code its supervisor reads, quietly.
+        Err(e) if let Some(Kind::ChildExit(code)) = run_kind(&e) => ExitCode::from(code),
         Err(e) => {
             eprintln!("fulcrum: {}", one_line(&e));
             ExitCode::from(exit_code(&e))
@@ -73,11 +76,13 @@ fn main() -> ExitCode {
 /// description, a flag's value, a namespace taken), 1 for every failure.
 fn exit_code(e: &anyhow::Error) -> u8 {
     use fulcrum_empowerment::service::{ClientError, ServiceError};
-    if e.is::<fulcrum_run::Interrupted>() {
+    if e.is::<fulcrum_run::Interrupted>() || run_kind(e) == Some(Kind::Interrupted) {
         return 130;
     }
     let bad_input = |c: &(dyn std::error::Error + 'static)| {
         c.is::<fulcrum_run::BadRequest>()
+            || c.downcast_ref::<fulcrum_run::Error>()
+                .is_some_and(|r| r.kind() == Kind::BadRequest)
             || c.is::<fulcrum_world::WorldError>()
             || c.is::<fulcrum_contracts::config::ConfigError>()
             || c.is::<fulcrum_world::DescribeError>()
@@ -93,13 +98,24 @@ fn exit_code(e: &anyhow::Error) -> u8 {
             )
     };
     #[cfg(feature = "multihost")]
-    let bad_input =
-        |c: &(dyn std::error::Error + 'static)| bad_input(c) || c.is::<fulcrum_bridge::Refused>();
+    let bad_input = |c: &(dyn std::error::Error + 'static)| {
+        bad_input(c)
+            || c.is::<fulcrum_bridge::Refused>()
+            || c.downcast_ref::<fulcrum_bridge::error::Error>()
+                .is_some_and(fulcrum_bridge::error::Error::is_refusal)
+    };
     if e.chain().any(bad_input) {
         2
     } else {
         1
     }
+}
+
+/// What the run library says the error is, if it came from there.
+fn run_kind(e: &anyhow::Error) -> Option<Kind> {
+    e.chain()
+        .find_map(|c| c.downcast_ref::<fulcrum_run::Error>())
+        .map(fulcrum_run::Error::kind)
 }
 
 /// The error and its causes as one sentence.

@@ -8,7 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crate::error::refuse;
-use anyhow::{Context, Result};
+use crate::error::{fail, Context, Result};
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::msg;
 use fulcrum_contracts::stop::STOP;
@@ -67,7 +67,7 @@ pub fn connect(
     let cfg = write_run(dir, &hello)?;
     let local_ns = format!("{}.h{}", hello.run, hello.host);
     if !msg::valid_namespace(&local_ns) {
-        anyhow::bail!("the run's namespace '{}' is not usable here", hello.run);
+        fail!("the run's namespace '{}' is not usable here", hello.run);
     }
     let joined = Joined {
         local_ns: local_ns.clone(),
@@ -109,7 +109,7 @@ pub fn connect(
                 let _ = std::io::stdout().flush();
             },
         );
-        r.map(|_| ()).map_err(anyhow::Error::from)
+        r.map(|_| ()).map_err(crate::error::Error::source)
     } else {
         println!("{}", joined_line(&joined));
         let _ = std::io::stdout().flush();
@@ -146,7 +146,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         .context("the run's world does not parse here")?;
     let hash = format!("{:016x}", world.content_hash());
     if hash != hello.world_hash {
-        anyhow::bail!(
+        fail!(
             "the run's world arrived damaged (hash {hash}, the learner's {})",
             hello.world_hash
         );
@@ -169,7 +169,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         }
     }
     if traj::run_tag(&hello.run) != hello.run_tag {
-        anyhow::bail!("the learner's host sent a run tag that does not match its run");
+        fail!("the learner's host sent a run tag that does not match its run");
     }
     Ok(world)
 }

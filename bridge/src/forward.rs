@@ -5,7 +5,7 @@ use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use anyhow::Result;
+use crate::error::{fail, Result};
 use fulcrum_contracts::msg::{self, status, wire, Describe, EmpRequest, EmpResponse};
 use fulcrum_contracts::stop::STOP;
 use fulcrum_empowerment::service::Answer;
@@ -51,12 +51,12 @@ impl Forwarder {
                 break;
             }
             if STOP.load(Ordering::Relaxed) || t0.elapsed().as_secs_f64() > give_up {
-                anyhow::bail!("the learner's empowerment service did not answer");
+                fail!("the learner's empowerment service did not answer");
             }
             std::thread::sleep(Duration::from_millis(200));
         }
         if out.describe.world_hash != world.content_hash() {
-            anyhow::bail!("the learner's empowerment service serves another world");
+            fail!("the learner's empowerment service serves another world");
         }
         f.describe = out.describe;
         Ok(f)

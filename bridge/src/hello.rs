@@ -7,7 +7,7 @@ use std::sync::atomic::Ordering;
 use std::time::{Duration, Instant};
 
 use crate::error::refuse;
-use anyhow::{Context, Result};
+use crate::error::{fail, Context, Result};
 use fulcrum_contracts::lines::ChildLine;
 use fulcrum_contracts::stop::STOP;
 use fulcrum_contracts::traj::HOST_STRIDE;
@@ -101,7 +101,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
     let mut said = false;
     loop {
         if STOP.load(Ordering::Relaxed) {
-            anyhow::bail!("stopped before the learner answered");
+            fail!("stopped before the learner answered");
         }
         let replies = session
             .get(format!(
@@ -129,7 +129,7 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
             }
         }
         if t0.elapsed().as_secs_f64() > give_up {
-            anyhow::bail!("no learner answered at {endpoint} within {give_up} s");
+            fail!("no learner answered at {endpoint} within {give_up} s");
         }
         if !said {
             // A wrong secret looks the same from here as a learner not yet up: zenoh

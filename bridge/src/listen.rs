@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use anyhow::Result;
+use crate::error::Result;
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::lines::ChildLine;
 use fulcrum_contracts::msg::{status, wire, EmpRequest, EmpResponse, MAX_IN_FLIGHT};

@@ -23,7 +23,7 @@ use std::os::unix::fs::{OpenOptionsExt, PermissionsExt};
 use std::path::{Path, PathBuf};
 
 use crate::error::refuse;
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 
 /// The name of the secret's file in the run directory.
 pub const SECRET_FILE: &str = "secret";
@@ -122,8 +122,12 @@ impl Secret {
             .open(&tmp)
             .with_context(|| format!("cannot create {}", tmp.display()))?;
         let line = format!("{USER}:{}\n", self.0);
-        fulcrum_contracts::fsio::replace_via(&path, &tmp, line.as_bytes(), false)
-            .map_err(|(what, e)| anyhow::Error::new(e).context(what))?;
+        fulcrum_contracts::fsio::replace_via(&path, &tmp, line.as_bytes(), false).map_err(
+            |(what, e)| crate::error::Error::Context {
+                what: what.to_string(),
+                source: Box::new(e),
+            },
+        )?;
         Ok(path)
     }
 

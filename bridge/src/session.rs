@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use crate::error::refuse;
-use anyhow::Result;
+use crate::error::Result;
 use fulcrum_contracts::IpcError;
 use iceoryx2::prelude::*;
 use zenoh::Wait;

@@ -5,7 +5,7 @@
 use std::io::Write;
 use std::sync::atomic::Ordering;
 
-use anyhow::Result;
+use crate::error::Result;
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::metrics::MetricsRow;
 use fulcrum_learner::paths::RunPaths;
@@ -82,8 +82,10 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
     let exit = run_learner_with(&w, &cfg, &paths, &a.namespace, &STOP, progress, hooks)?;
     match exit {
         LearnerExit::Finished => Ok(()),
-        LearnerExit::Interrupted if paused && !signalled() => std::process::exit(EXIT_PAUSED),
-        LearnerExit::Interrupted => std::process::exit(EXIT_INTERRUPTED),
+        LearnerExit::Interrupted if paused && !signalled() => {
+            Err(crate::error::Error::ChildExit(EXIT_PAUSED as u8))
+        }
+        LearnerExit::Interrupted => Err(crate::error::Error::ChildExit(EXIT_INTERRUPTED as u8)),
     }
 }
 

@@ -11,7 +11,7 @@
 
 use std::path::Path;
 
-use anyhow::Result;
+use crate::error::Result;
 use fulcrum_actors::policy::Policy;
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::evalcsv::{EvalRow, PERIODIC};

@@ -9,7 +9,7 @@
 use std::process::Child;
 use std::time::Instant;
 
-use anyhow::Result;
+use crate::error::Result;
 use crossbeam_channel::{after, never, select, Receiver};
 use fulcrum_contracts::lines::ChildLine;
 
@@ -120,7 +120,7 @@ pub fn supervise_host(h: HostRun<'_>) -> Result<()> {
                     if over || s.success() {
                         eprintln!("fulcrum actor-host: the run is over");
                     } else {
-                        result = Err(anyhow::anyhow!("the bridge stopped ({s})"));
+                        result = Err(crate::failure!("the bridge stopped ({s})"));
                     }
                     break;
                 }
@@ -139,7 +139,7 @@ pub fn supervise_host(h: HostRun<'_>) -> Result<()> {
                             due[j] = Some(now + r.delay);
                         }
                         Err(o) => {
-                            result = Err(anyhow::anyhow!(
+                            result = Err(crate::failure!(
                                 "actor {j} stopped ({s}), its stop number {} within {} s: over its budget of {} restarts in {} s",
                                 o.n,
                                 policy.window.as_secs_f64(),

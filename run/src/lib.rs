@@ -24,7 +24,7 @@
 //! | [`record`] | episodes of a run's policy as strips of frames |
 //! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
 //! | [`stats`] | curves over seeds, censored times to solve, tests |
-//! | [`error`] | bad requests and interruptions (the binary's exit codes 2 and 130) |
+//! | [`error`] | the library's typed errors: bad requests, interruptions, a child's exit code, failures with their sources ([`Kind`] is what the binary's exit code is decided from) |
 //! | [`host`] | an actor host's supervision: its bridge and actors, restarted as the supervisor restarts its own |
 //! | [`argv`] | the command lines of fulcrum's own child processes, one typed builder each |
 
@@ -47,4 +47,4 @@ pub mod stats;
 pub mod supervisor;
 pub mod watchdog;
 
-pub use error::{bad, BadRequest, Interrupted};
+pub use error::{bad, BadRequest, Error, Interrupted, Kind};

@@ -133,7 +133,7 @@ impl DirLock {
 
 /// Lock `dir` for this invocation and its children: a directory held by another
 /// invocation is a bad request (exit 2, one sentence naming the holder's pid).
-pub fn lock_for_run(dir: &Path) -> anyhow::Result<DirLock> {
+pub fn lock_for_run(dir: &Path) -> crate::error::Result<DirLock> {
     match DirLock::acquire(dir).and_then(DirLock::inherit) {
         Ok(l) => Ok(l),
         Err(e @ LockError::Held { .. }) => Err(crate::error::BadRequest(e.to_string()).into()),

@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode, RunConfig};
 use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_contracts::ppo_config::PpoConfig;

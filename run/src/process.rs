@@ -11,7 +11,7 @@ use std::os::unix::process::ExitStatusExt;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
 use fulcrum_contracts::lines::ChildLine;
 
@@ -269,7 +269,7 @@ pub fn spawn_until<T>(
             recv(timeout) -> _ => {
                 let _ = child.kill();
                 let _ = child.wait();
-                anyhow::bail!(
+                crate::fail!(
                     "{what} was not ready after {:.0} s",
                     t0.elapsed().as_secs_f64()
                 );

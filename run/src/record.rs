@@ -10,7 +10,7 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use fulcrum_actors::policy::Policy;
 use fulcrum_contracts::checkpoint;
 use fulcrum_contracts::config::RunConfig;
@@ -157,7 +157,7 @@ pub fn load_policy(
         .flat_map(|p| p.weights)
         .collect();
     let mut policy = Policy::new(shape).with_action_mask(cfg.action_mask);
-    anyhow::ensure!(
+    crate::ensure!(
         policy.set(&flat),
         "the checkpoint's weights do not fit the network"
     );

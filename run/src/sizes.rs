@@ -153,7 +153,7 @@ pub fn mem_available() -> Option<u64> {
 /// Refuse a run whose chunks are over [`MAX_CHUNK_BYTES`], or whose shared memory is
 /// more than `/dev/shm` has free or the machine has available: one sentence saying how
 /// much it needs and how much there is.
-pub fn check_memory(cfg: &RunConfig, w: &World) -> anyhow::Result<()> {
+pub fn check_memory(cfg: &RunConfig, w: &World) -> crate::error::Result<()> {
     let need = shared_memory(cfg, w);
     if need.chunk > MAX_CHUNK_BYTES {
         return bad(format!(

@@ -29,7 +29,7 @@ use std::path::PathBuf;
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use crossbeam_channel::{after, never, select, Receiver, Sender};
 use fulcrum_actors::SERVICE_START_LIMIT;
 use fulcrum_contracts::config::RunConfig;
@@ -237,7 +237,7 @@ impl Supervisor {
                 Ok(())
             }
             Ready::Stopped => Ok(()),
-            Ready::Exited(s) => anyhow::bail!(
+            Ready::Exited(s) => crate::fail!(
                 "the empowerment service stopped before it was ready ({})",
                 describe_status(s)
             ),
@@ -268,7 +268,7 @@ impl Supervisor {
                     "the bridge refused the address {addr} (its message is above)"
                 ))
             }
-            Ready::Exited(s) => anyhow::bail!(
+            Ready::Exited(s) => crate::fail!(
                 "the bridge stopped before it listened ({})",
                 describe_status(s)
             ),
@@ -408,12 +408,12 @@ impl Supervisor {
             Some(0) => Ok(Outcome::Finished),
             Some(EXIT_PAUSED) => Ok(Outcome::Paused),
             Some(EXIT_INTERRUPTED) if stopping => Ok(Outcome::Interrupted),
-            _ if !self.paths.checkpoint().exists() => Err(anyhow::anyhow!(
+            _ if !self.paths.checkpoint().exists() => Err(crate::failure!(
                 "the learner failed ({}) before its first checkpoint; `fulcrum train --resume {}` starts the run over",
                 describe_status(s),
                 self.paths.dir.display()
             )),
-            _ => Err(anyhow::anyhow!(
+            _ => Err(crate::failure!(
                 "the learner failed ({}); the last checkpoint is in {}; continue with `fulcrum train --resume {}`",
                 describe_status(s),
                 self.paths.checkpoint().display(),
@@ -444,7 +444,7 @@ impl Supervisor {
         let policy = self.opts.restarts;
         let budget = self.budgets.entry(slot).or_default();
         let allowed = budget.stopped(&policy, Instant::now()).map_err(|over| {
-            anyhow::anyhow!(
+            crate::failure!(
                 "{} stopped ({}), its stop number {} within {:.0} s: over its budget of {} restarts in {:.0} s",
                 slot.name(),
                 describe_status(status),
@@ -503,13 +503,13 @@ impl Supervisor {
             self.restart(d, progress)?;
         }
         if self.service_deadline.is_some_and(|t| now > t) {
-            anyhow::bail!(
+            crate::fail!(
                 "the restarted empowerment service was not ready within {:.0} s",
                 SERVICE_START_LIMIT.as_secs_f64()
             );
         }
         if let Some(why) = self.watchdog.check() {
-            anyhow::bail!(
+            crate::fail!(
                 "{why}; the last checkpoint is in {}; continue with `fulcrum train --resume {}`",
                 self.paths.checkpoint().display(),
                 self.paths.dir.display()

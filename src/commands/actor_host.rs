@@ -24,9 +24,9 @@ use std::time::Duration;
 use anyhow::{Context, Result};
 
 use crate::cli::ActorHostArgs;
+use crate::commands::bad;
 use fulcrum_bridge::{actor_id, default_dir, parse_joined};
 use fulcrum_run::argv::{self, ChildKind};
-use fulcrum_run::bad;
 use fulcrum_run::child::ChildRequest;
 use fulcrum_run::host::{supervise_host, HostRun};
 use fulcrum_run::process::{cores, hostname, install_signal_handlers, spawn_until, Ready};
@@ -94,7 +94,7 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
         actor_id(joined.host, 0),
         actor_id(joined.host, k - 1)
     );
-    let start = |j: usize, inc: u32| -> Result<Child> {
+    let start = |j: usize, inc: u32| -> fulcrum_run::error::Result<Child> {
         Command::new(&exe)
             .args(argv::child(
                 ChildKind::Actor,
@@ -113,7 +113,10 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             .stdin(Stdio::null())
             .process_group(0)
             .spawn()
-            .with_context(|| format!("cannot start actor {j}"))
+            .map_err(|e| fulcrum_run::Error::Context {
+                what: format!("cannot start actor {j}"),
+                source: Box::new(e),
+            })
     };
     // Each actor has its own budget of restarts in a window, and waits a back-off
     // before each restart (as the supervisor's children do).
@@ -126,5 +129,6 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             window: Duration::from_secs_f64(a.restart_window),
         },
         start: Box::new(start),
-    })
+    })?;
+    Ok(())
 }

@@ -4,8 +4,8 @@
 use anyhow::Result;
 use std::path::Path;
 
+use crate::commands::bad;
 use fulcrum_bridge::{connect, listen, Secret, Want, SECRET_ENV, SECRET_FILE};
-use fulcrum_run::bad;
 use fulcrum_run::process::{die_with_parent, hostname, install_signal_handlers};
 
 use crate::cli::BridgeArgs;
@@ -21,7 +21,7 @@ pub fn run(a: &BridgeArgs) -> Result<()> {
             let Some(ns) = &a.namespace else {
                 return bad("bridge --listen needs --namespace (the run's)");
             };
-            listen(addr, &a.run, ns, &a.zenoh.options())
+            Ok(listen(addr, &a.run, ns, &a.zenoh.options())?)
         }
         (None, Some(addr)) => {
             let host = a.name.clone().unwrap_or_else(hostname);
@@ -30,7 +30,7 @@ pub fn run(a: &BridgeArgs) -> Result<()> {
                 run_id: a.run_id.as_deref(),
             };
             let secret = secret(a.secret_file.as_deref())?;
-            connect(
+            Ok(connect(
                 addr,
                 &a.run,
                 &host,
@@ -38,7 +38,7 @@ pub fn run(a: &BridgeArgs) -> Result<()> {
                 a.give_up,
                 &a.zenoh.options(),
                 &secret,
-            )
+            )?)
         }
         (None, None) => bad("bridge needs --listen ADDR or --connect ADDR"),
     }

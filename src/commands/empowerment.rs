@@ -9,10 +9,11 @@ use fulcrum_world::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
+use crate::commands::bad;
 use fulcrum_empowerment::request::{
     engine, holding_mask, matrix_columns, object_set, objects_or_default, tool_sel,
 };
-use fulcrum_run::{bad, BadRequest};
+use fulcrum_run::BadRequest;
 use fulcrum_world::load_world as world;
 
 /// Run an `empowerment` subcommand.

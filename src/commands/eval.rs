@@ -2,9 +2,9 @@
 //! world or another of the same shape; prints success, return, length and tool use with
 //! 95% intervals and appends a row to `RUN/eval.csv`.
 
+use crate::commands::bad;
 use anyhow::{Context, Result};
 use fulcrum_contracts::config::RunConfig;
-use fulcrum_run::bad;
 use fulcrum_run::eval::{evaluate, summarise, Estimate};
 use fulcrum_world::load_world;
 

@@ -5,13 +5,14 @@
 
 use std::path::PathBuf;
 
+use crate::commands::bad;
 use anyhow::{Context, Result};
 use clap::Parser;
 use fulcrum_run::argv;
 use fulcrum_run::experiment::{prepare_set, Arm, ExperimentRequest, SetRequest, SetWorld};
 use fulcrum_run::plan::plan;
 use fulcrum_run::process::utc_stamp;
-use fulcrum_run::{bad, BadRequest};
+use fulcrum_run::BadRequest;
 use fulcrum_world::generate::{GenError, GenSet};
 use fulcrum_world::View;
 

@@ -41,11 +41,13 @@ pub fn run(cli: crate::cli::Cli) -> Result<()> {
         #[cfg(feature = "multihost")]
         Command::RemotePeer { listen } => bench::remote::peer(&listen),
         #[cfg(not(feature = "multihost"))]
-        Command::RemotePeer { .. } => fulcrum_run::bad(NO_MULTIHOST.replace("{}", "__remote-peer")),
+        Command::RemotePeer { .. } => {
+            crate::commands::bad(NO_MULTIHOST.replace("{}", "__remote-peer"))
+        }
         #[cfg(not(feature = "multihost"))]
-        Command::ActorHost(_) => fulcrum_run::bad(NO_MULTIHOST.replace("{}", "actor-host")),
+        Command::ActorHost(_) => crate::commands::bad(NO_MULTIHOST.replace("{}", "actor-host")),
         #[cfg(not(feature = "multihost"))]
-        Command::Bridge(_) => fulcrum_run::bad(NO_MULTIHOST.replace("{}", "bridge")),
+        Command::Bridge(_) => crate::commands::bad(NO_MULTIHOST.replace("{}", "bridge")),
         Command::Learner(a) => train::learner_process(&a),
         Command::Actor(a) => train::actor_process(&a),
         Command::BenchClient {
@@ -71,4 +73,9 @@ impl From<MethodArg> for Method {
             MethodArg::Enumerate => Method::Enumerate,
         }
     }
+}
+
+/// A mistake in what was asked for: one sentence, exit code 2 (`main.rs`).
+pub(crate) fn bad<T>(msg: impl Into<String>) -> anyhow::Result<T> {
+    Err(fulcrum_run::BadRequest(msg.into()).into())
 }

@@ -9,9 +9,9 @@
 //! not-held horizon by the inventory) for the agent standing there, with the inventory
 //! and objects of that moment: where the bonus is, and where the agent goes.
 
+use crate::commands::bad;
 use anyhow::Result;
 use fulcrum_contracts::config::RunConfig;
-use fulcrum_run::bad;
 use fulcrum_run::record::record;
 use fulcrum_world::load_world;
 

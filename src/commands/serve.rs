@@ -10,11 +10,12 @@ use fulcrum_empowerment::service::{serve, ServeConfig, Tables};
 use fulcrum_empowerment::{set_name, Method, ToolSel};
 
 use crate::cli::ServeArgs;
+use crate::commands::bad;
 use fulcrum_contracts::config::EmpowermentModel;
 use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::child::load_run;
-use fulcrum_run::{bad, BadRequest};
+use fulcrum_run::BadRequest;
 use fulcrum_world::load_world as world;
 use fulcrum_world::World;
 

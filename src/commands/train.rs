@@ -4,12 +4,13 @@
 //! The work is in `fulcrum_run`: [`fulcrum_run::plan`] checks the request and writes the
 //! run directory, [`fulcrum_run::supervisor`] runs the children until the run ends.
 
+use crate::commands::bad;
 use anyhow::{Context, Result};
 use fulcrum_contracts::config::HorizonMode;
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_run::plan::{resolve, Planned};
 use fulcrum_run::supervisor::{supervise, Options, Outcome};
-use fulcrum_run::{bad, Interrupted};
+use fulcrum_run::Interrupted;
 
 use crate::cli::{ChildArgs, TrainArgs};
 
@@ -130,10 +131,10 @@ pub fn run(a: &TrainArgs) -> Result<()> {
 
 /// `fulcrum __learner`.
 pub fn learner_process(a: &ChildArgs) -> Result<()> {
-    fulcrum_run::child::learner_main(&a.request())
+    Ok(fulcrum_run::child::learner_main(&a.request())?)
 }
 
 /// `fulcrum __actor`.
 pub fn actor_process(a: &ChildArgs) -> Result<()> {
-    fulcrum_run::child::actor_main(&a.request())
+    Ok(fulcrum_run::child::actor_main(&a.request())?)
 }

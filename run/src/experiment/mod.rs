@@ -37,7 +37,7 @@ pub use set::{prepare_set, run_set, SetDir, SetRequest, SetWorld};
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_learner::paths::RunPaths;
 use serde::{Deserialize, Serialize};
@@ -197,7 +197,7 @@ pub fn run(a: &ExperimentRequest) -> Result<String> {
     let done = run_one(a)?;
     let (markdown, failed, dir) = (done.markdown, done.failed, done.dir);
     if !failed.is_empty() {
-        anyhow::bail!(
+        crate::fail!(
             "{} runs failed ({}); their logs are in {}; run the same command again to retry them",
             failed.len(),
             failed.join(", "),

@@ -2,7 +2,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 
 use super::summary::{ArmSummary, MeanStd, Summary};
 use super::FINAL_FRACTION;

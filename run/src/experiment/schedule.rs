@@ -7,7 +7,7 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use fulcrum_learner::paths::RunPaths;
 
 use super::{state, train_args, Job, Spec, State};

@@ -24,7 +24,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::report::{p_text, steps_text};
@@ -243,7 +243,7 @@ pub fn run_set(req: &SetRequest) -> Result<String> {
     fulcrum_contracts::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
     if !failed.is_empty() {
-        anyhow::bail!(
+        crate::fail!(
             "runs failed on {} of the {n} worlds ({}); their logs are under {}/<world>/logs; run the same command again to retry them",
             failed.len(),
             failed.join(", "),

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{Context, Result};
+use crate::error::{Context, Result};
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_learner::metrics::{read_metrics, MetricsRow};
 use fulcrum_learner::paths::RunPaths;

@@ -120,7 +120,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         #[cfg(not(feature = "multihost"))]
         {
             let _ = addr;
-            return fulcrum_run::bad(super::NO_MULTIHOST.replace("{}", "bench --remote"));
+            return crate::commands::bad(super::NO_MULTIHOST.replace("{}", "bench --remote"));
         }
     } else if a.scaling {
         scaling::run(&a.plots, a.max_states, &mut figs)?;
