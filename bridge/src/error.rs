@@ -5,8 +5,6 @@
 //! return: a refusal, a failure naming what was being done with its source kept, another
 //! crate's typed error, or a sentence of the bridge's own.
 
-use std::fmt::Display;
-
 /// The bridge cannot do what it was asked (bad input, not a failure): one sentence.
 #[derive(Debug, thiserror::Error)]
 #[error("{0}")]
@@ -17,8 +15,7 @@ pub fn refuse<T>(msg: impl Into<String>) -> Result<T> {
     Err(Error::Refused(Refused(msg.into())))
 }
 
-/// Another crate's error, as it came.
-pub type Source = Box<dyn std::error::Error + Send + Sync + 'static>;
+pub use fulcrum_contracts::context::{Context, Contextual, Source};
 
 /// An error of the bridge.
 #[derive(Debug, thiserror::Error)]
@@ -26,15 +23,9 @@ pub enum Error {
     /// The bridge cannot do what it was asked (exit 2).
     #[error(transparent)]
     Refused(#[from] Refused),
-    /// A failure while doing what `what` says.
-    #[error("{what}")]
-    Context {
-        /// What was being done.
-        what: String,
-        /// Why it failed.
-        #[source]
-        source: Source,
-    },
+    /// A failure while doing what it says, its cause kept as the source.
+    #[error(transparent)]
+    Context(#[from] Contextual),
     /// Another crate's typed error.
     #[error("{0}")]
     Source(#[source] Source),
@@ -53,51 +44,23 @@ impl Error {
     pub fn is_refusal(&self) -> bool {
         match self {
             Error::Refused(_) => true,
-            Error::Context { source, .. } | Error::Source(source) => {
+            Error::Context(Contextual {
+                source: Some(source),
+                ..
+            })
+            | Error::Source(source) => {
                 source.is::<Refused>()
                     || source
                         .downcast_ref::<Error>()
                         .is_some_and(Error::is_refusal)
             }
-            Error::Failed(_) => false,
+            Error::Context(_) | Error::Failed(_) => false,
         }
     }
 }
 
 /// The bridge's results.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
-
-/// Naming what was being done when an error came.
-pub trait Context<T> {
-    /// The error, with `what` was being done.
-    fn context(self, what: impl Display) -> Result<T>;
-    /// The same, with the description made only on error.
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T>;
-}
-
-impl<T, E: Into<Source>> Context<T> for std::result::Result<T, E> {
-    fn context(self, what: impl Display) -> Result<T> {
-        self.map_err(|e| Error::Context {
-            what: what.to_string(),
-            source: e.into(),
-        })
-    }
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T> {
-        self.map_err(|e| Error::Context {
-            what: what().to_string(),
-            source: e.into(),
-        })
-    }
-}
-
-impl<T> Context<T> for Option<T> {
-    fn context(self, what: impl Display) -> Result<T> {
-        self.ok_or_else(|| Error::Failed(what.to_string()))
-    }
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T> {
-        self.ok_or_else(|| Error::Failed(what().to_string()))
-    }
-}
 
 /// Return early with a failure the bridge describes.
 macro_rules! fail {
@@ -107,17 +70,8 @@ macro_rules! fail {
 }
 pub(crate) use fail;
 
-macro_rules! sources {
-    ($($t:ty),* $(,)?) => {
-        $(impl From<$t> for Error {
-            fn from(e: $t) -> Error {
-                Error::Source(Box::new(e))
-            }
-        })*
-    };
-}
-
-sources!(
+fulcrum_contracts::sources!(
+    Error:
     std::io::Error,
     ZenohError,
     fulcrum_contracts::IpcError,

@@ -75,7 +75,8 @@ pub(crate) fn write_hosts(path: &Path, hosts: &BTreeMap<String, (u32, String)>) 
 /// Writes a file atomically, the error naming it.
 pub(crate) fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     fulcrum_contracts::fsio::write_atomic(path, bytes)
-        .with_context(|| format!("cannot write {}", path.display()))
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
 }
 
 /// What an actor host needs to start its actors (printed by the bridge when ready, as
@@ -119,8 +120,8 @@ pub fn join(session: &zenoh::Session, endpoint: &str, name: &str, give_up: f64) 
                         .try_to_string()
                         .unwrap_or_default()
                         .to_string();
-                    return toml::from_str(&text)
-                        .context("the learner's host sent a join reply that does not parse");
+                    return Ok(toml::from_str(&text)
+                        .context("the learner's host sent a join reply that does not parse")?);
                 }
                 Err(e) => {
                     let why = e.payload().try_to_string().unwrap_or_default().to_string();

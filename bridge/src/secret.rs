@@ -123,9 +123,9 @@ impl Secret {
             .with_context(|| format!("cannot create {}", tmp.display()))?;
         let line = format!("{USER}:{}\n", self.0);
         fulcrum_contracts::fsio::replace_via(&path, &tmp, line.as_bytes(), false).map_err(
-            |(what, e)| crate::error::Error::Context {
+            |(what, e)| crate::error::Contextual {
                 what: what.to_string(),
-                source: Box::new(e),
+                source: Some(Box::new(e)),
             },
         )?;
         Ok(path)

@@ -19,6 +19,8 @@ pub mod checkpoint;
 pub mod chunk_check;
 /// A training run's configuration: what `config.toml` holds.
 pub mod config;
+/// Naming what was being done when an error came, typed.
+pub mod context;
 /// Atomic file writes that leave device nodes and FIFOs alone.
 pub mod fsio;
 /// This machine's name.

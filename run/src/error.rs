@@ -9,8 +9,6 @@
 //! [`Error::Context`] names what was being done, [`Error::Source`] is another crate's
 //! typed error as it came, [`Error::Failed`] a sentence of this crate's own.
 
-use std::fmt::Display;
-
 /// A mistake in what was asked for (a request that cannot be planned, a run directory
 /// that is not one): one sentence naming what is wrong and where. The binary exits 2.
 #[derive(Debug, thiserror::Error)]
@@ -23,8 +21,7 @@ pub struct BadRequest(pub String);
 #[error("{0}")]
 pub struct Interrupted(pub String);
 
-/// Another crate's error, as it came.
-pub type Source = Box<dyn std::error::Error + Send + Sync + 'static>;
+pub use fulcrum_contracts::context::{Context, Contextual, Source};
 
 /// An error of the run library.
 #[derive(Debug, thiserror::Error)]
@@ -38,15 +35,9 @@ pub enum Error {
     /// A child process ends with this exit code for its supervisor; nothing is printed.
     #[error("the process ends with exit code {0}")]
     ChildExit(u8),
-    /// A failure while doing what `what` says.
-    #[error("{what}")]
-    Context {
-        /// What was being done.
-        what: String,
-        /// Why it failed.
-        #[source]
-        source: Source,
-    },
+    /// A failure while doing what it says, its cause kept as the source.
+    #[error(transparent)]
+    Context(#[from] Contextual),
     /// Another crate's typed error (kept as the source, so that whoever reads the
     /// chain of causes finds it).
     #[error("{0}")]
@@ -77,15 +68,17 @@ impl Error {
             Error::BadRequest(_) => Kind::BadRequest,
             Error::Interrupted(_) => Kind::Interrupted,
             Error::ChildExit(c) => Kind::ChildExit(*c),
-            Error::Context { source, .. } | Error::Source(source) => {
-                match source.downcast_ref::<Error>() {
-                    Some(e) => e.kind(),
-                    None if source.is::<BadRequest>() => Kind::BadRequest,
-                    None if source.is::<Interrupted>() => Kind::Interrupted,
-                    None => Kind::Failure,
-                }
-            }
-            Error::Failed(_) => Kind::Failure,
+            Error::Context(Contextual {
+                source: Some(source),
+                ..
+            })
+            | Error::Source(source) => match source.downcast_ref::<Error>() {
+                Some(e) => e.kind(),
+                None if source.is::<BadRequest>() => Kind::BadRequest,
+                None if source.is::<Interrupted>() => Kind::Interrupted,
+                None => Kind::Failure,
+            },
+            Error::Context(_) | Error::Failed(_) => Kind::Failure,
         }
     }
 
@@ -106,38 +99,6 @@ pub type Result<T, E = Error> = std::result::Result<T, E>;
 /// Shorthand for a [`BadRequest`] error.
 pub fn bad<T>(msg: impl Into<String>) -> Result<T> {
     Err(Error::BadRequest(BadRequest(msg.into())))
-}
-
-/// Naming what was being done when an error came (as `anyhow::Context`, typed).
-pub trait Context<T> {
-    /// The error, with `what` was being done.
-    fn context(self, what: impl Display) -> Result<T>;
-    /// The same, with the description made only on error.
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T>;
-}
-
-impl<T, E: Into<Source>> Context<T> for std::result::Result<T, E> {
-    fn context(self, what: impl Display) -> Result<T> {
-        self.map_err(|e| Error::Context {
-            what: what.to_string(),
-            source: e.into(),
-        })
-    }
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T> {
-        self.map_err(|e| Error::Context {
-            what: what().to_string(),
-            source: e.into(),
-        })
-    }
-}
-
-impl<T> Context<T> for Option<T> {
-    fn context(self, what: impl Display) -> Result<T> {
-        self.ok_or_else(|| Error::Failed(what.to_string()))
-    }
-    fn with_context<D: Display>(self, what: impl FnOnce() -> D) -> Result<T> {
-        self.ok_or_else(|| Error::Failed(what().to_string()))
-    }
 }
 
 /// Return early with a failure this crate describes (as `anyhow::bail!`).
@@ -166,18 +127,8 @@ macro_rules! ensure {
     };
 }
 
-/// Other crates' typed errors that `?` turns into [`Error::Source`].
-macro_rules! sources {
-    ($($t:ty),* $(,)?) => {
-        $(impl From<$t> for Error {
-            fn from(e: $t) -> Error {
-                Error::Source(Box::new(e))
-            }
-        })*
-    };
-}
-
-sources!(
+fulcrum_contracts::sources!(
+    Error:
     std::io::Error,
     std::fmt::Error,
     fulcrum_world::WorldError,

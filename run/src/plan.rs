@@ -423,5 +423,6 @@ fn write_config(paths: &RunPaths, cfg: &RunConfig) -> Result<()> {
         cfg.to_toml()
     );
     fulcrum_contracts::fsio::write_atomic(&paths.config(), text.as_bytes())
-        .with_context(|| format!("cannot write {}", paths.config().display()))
+        .with_context(|| format!("cannot write {}", paths.config().display()))?;
+    Ok(())
 }

@@ -31,7 +31,7 @@ pub fn stop_events() -> Result<Receiver<()>> {
     let mut fds = [0 as libc::c_int; 2];
     // SAFETY: pipe2 fills the two descriptors we own.
     if unsafe { libc::pipe2(fds.as_mut_ptr(), libc::O_CLOEXEC | libc::O_NONBLOCK) } != 0 {
-        return Err(std::io::Error::last_os_error()).context("cannot create the stop pipe");
+        return Ok(Err(std::io::Error::last_os_error()).context("cannot create the stop pipe")?);
     }
     let (read, write) = (fds[0], fds[1]);
     // The read end blocks; the write end stays non-blocking for the handler.

@@ -113,9 +113,11 @@ pub fn run(a: &ActorHostArgs) -> Result<()> {
             .stdin(Stdio::null())
             .process_group(0)
             .spawn()
-            .map_err(|e| fulcrum_run::Error::Context {
-                what: format!("cannot start actor {j}"),
-                source: Box::new(e),
+            .map_err(|e| {
+                fulcrum_run::Error::Context(fulcrum_contracts::context::Contextual {
+                    what: format!("cannot start actor {j}"),
+                    source: Some(Box::new(e)),
+                })
             })
     };
     // Each actor has its own budget of restarts in a window, and waits a back-off

@@ -142,34 +142,9 @@ pub fn destroyers(kind: ObjectKind) -> Vec<String> {
 /// layout of which can be solved is refused here: layout 0 is drawn.
 pub fn parse_family(text: &str, file: &str) -> Result<Family, WorldError> {
     let cx = Ctx { text, file };
-    let raw: RawFile = toml::from_str(text).map_err(|e| {
-        let msg = e.message().trim().trim_end_matches('.').to_string();
-        match e.span() {
-            Some(span) => cx.at(span.start, msg),
-            None => cx.file(msg),
-        }
-    })?;
-    let name = raw.name.get_ref().clone();
-    if name.is_empty()
-        || !name
-            .bytes()
-            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
-    {
-        return Err(cx.at(
-            raw.name.span().start,
-            format!("family name '{name}' must be made of a-z, 0-9 and '-'"),
-        ));
-    }
-    let max_steps = match &raw.max_steps {
-        None => 100,
-        Some(m) if (1..=1_000_000).contains(m.get_ref()) => *m.get_ref() as u32,
-        Some(m) => {
-            return Err(cx.at(
-                m.span().start,
-                format!("max_steps {} must be 1 to 1000000", m.get_ref()),
-            ))
-        }
-    };
+    let raw: RawFile = cx.toml()?;
+    let name = cx.name("family", &raw.name)?;
+    let max_steps = cx.max_steps(&raw.max_steps)?;
     let fam = raw.family.get_ref();
     let side = |v: &Spanned<i64>, what: &str| {
         let x = *v.get_ref();

@@ -192,6 +192,45 @@ impl Ctx<'_> {
             msg: msg.into(),
         }
     }
+
+    /// The file's text read as TOML into `T`, a mistake placed where toml found it.
+    pub(crate) fn toml<T: serde::de::DeserializeOwned>(&self) -> Result<T, WorldError> {
+        toml::from_str(self.text).map_err(|e| {
+            let msg = e.message().trim().trim_end_matches('.').to_string();
+            match e.span() {
+                Some(span) => self.at(span.start, msg),
+                None => self.file(msg),
+            }
+        })
+    }
+
+    /// A world's or family's name (`what`): `[a-z0-9-]+`.
+    pub(crate) fn name(&self, what: &str, name: &Spanned<String>) -> Result<String, WorldError> {
+        let n = name.get_ref();
+        if n.is_empty()
+            || !n
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
+        {
+            return Err(self.at(
+                name.span().start,
+                format!("{what} name '{n}' must be made of a-z, 0-9 and '-'"),
+            ));
+        }
+        Ok(n.clone())
+    }
+
+    /// `max_steps`: 1 to 10^6, 100 when not given.
+    pub(crate) fn max_steps(&self, m: &Option<Spanned<i64>>) -> Result<u32, WorldError> {
+        match m {
+            None => Ok(100),
+            Some(m) if (1..=1_000_000).contains(m.get_ref()) => Ok(*m.get_ref() as u32),
+            Some(m) => Err(self.at(
+                m.span().start,
+                format!("max_steps = {} must be between 1 and 1000000", m.get_ref()),
+            )),
+        }
+    }
 }
 
 /// Parse and validate a world file's text. `file` names it in errors.
@@ -202,38 +241,10 @@ pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
             "this is a world family (a layout per seed), not one world: show a layout with `fulcrum world show FAMILY --layout N`, or write one out with --toml",
         ));
     }
-    let raw: RawWorld = toml::from_str(text).map_err(|e| {
-        let msg = e.message().trim().trim_end_matches('.').to_string();
-        match e.span() {
-            Some(span) => cx.at(span.start, msg),
-            None => cx.file(msg),
-        }
-    })?;
-
-    let name = raw.name.get_ref();
-    if name.is_empty()
-        || !name
-            .bytes()
-            .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'-')
-    {
-        return Err(cx.at(
-            raw.name.span().start,
-            format!("world name '{name}' must be made of a-z, 0-9 and '-'"),
-        ));
-    }
-    let max_steps = match &raw.max_steps {
-        None => 100,
-        Some(m) => {
-            let v = *m.get_ref();
-            if !(1..=1_000_000).contains(&v) {
-                return Err(cx.at(
-                    m.span().start,
-                    format!("max_steps = {v} must be between 1 and 1000000"),
-                ));
-            }
-            v as u32
-        }
-    };
+    let raw: RawWorld = cx.toml()?;
+    let name = cx.name("world", &raw.name)?;
+    let name = &name;
+    let max_steps = cx.max_steps(&raw.max_steps)?;
     let tool_decl = tool_decl(&cx, &raw.tools)?;
     let map = MapText::new(text, &raw.map);
     let (width, height) = map.size(&cx)?;

@@ -144,7 +144,7 @@ pub(super) fn schedule(
                     }
                 }
                 Ok(None) => i += 1,
-                Err(e) => return Err(e).context("cannot wait for a run"),
+                Err(e) => return Ok(Err(e).context("cannot wait for a run")?),
             }
         }
         let live: u64 = running
