@@ -1,41 +1,65 @@
 #!/usr/bin/env python3
 """The per-world tables of RESULTS.md ("Defaults: masked actions, floored advantages"):
-reads experiments/masked/<world>/summary.json (written by `fulcrum experiment`) and prints,
-per arm, seeds solved, the IQM of steps to 0.9 with its bootstrap interval, the median,
-the log-rank p against the baseline with its direction, and Holm's adjustment over the
-four empowerment forms of the world. Standard library only."""
+reads the experiments' summaries committed as docs/results/masked-<world>-summary.json
+(`fulcrum experiment`'s summary.json, copied there by scripts/results.sh) and prints, per
+arm, seeds solved, the IQM of steps to 0.9 with its bootstrap interval, the median, the
+log-rank p against the baseline with its direction, and Holm's adjustment over the four
+empowerment forms of the world. The log-rank tests and Holm's adjustment are computed
+again here from the per-seed steps and checked against the experiment's. Worlds whose
+summary is not committed yet are left out. Standard library only."""
 import json
 import os
 import sys
 
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from noisy_tables import log_rank, pt, st  # noqa: E402
+
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-worlds=[('exp1-tree','500k'),('exp1-wall','500k'),('exp2','3M'),('exp3','3M')]
-def st(x):
-    if x is None: return '-'
-    return f"{x/1e6:.2f}M" if x>=1e6 else f"{x/1e3:.0f}k"
-def pt(p):
-    return "< 0.001" if p<0.001 else f"{p:.3f}"
-for w,b in worlds:
-    try: s=json.load(open(os.path.join(ROOT, 'experiments', 'masked', w, 'summary.json')))
-    except Exception as e: print(w,e); continue
-    comps={c['arm']:c for c in s['comparisons']}
-    # Holm over the arms compared with baseline
-    fam={'additive','additive-fixed','horizon-potential','first-visit'}
-    ps=[(c['log_rank']['p'] if c['log_rank'] else 1.0, c['arm']) for c in s['comparisons'] if c['arm'] in fam]
-    ps.sort()
-    m=len(ps); holm={}; run=0
-    for i,(p,a) in enumerate(ps):
-        adj=min(1.0,(m-i)*p); run=max(run,adj); holm[a]=run
-    print(f"\n{w} (budget {b})")
-    print("| arm | solved | IQM steps to 0.9 (95% CI) | median | log-rank p vs baseline | Holm (4 forms) |")
-    print("|---|---|---|---|---|---|")
-    for a in s['arms']:
-        c=comps.get(a['name'])
-        ci=a['iqm_ci']
-        iq=f"{st(a['iqm_steps'])} ({st(ci[0])} - {st(ci[1])})" if ci else '-'
-        lr = pt(c['log_rank']['p']) if c and c['log_rank'] else '-'
-        dirn=''
-        if c and c['log_rank']:
-            dirn = ' (faster)' if c['log_rank']['observed_a']>c['log_rank']['expected_a'] else ' (slower)'
-        h = pt(holm[a['name']]) if a['name'] in holm else '-'
-        print(f"| {a['name']} | {a['reached']}/{a['finished']} | {iq} | {st(a['median_steps'])} | {lr}{dirn if c else ''} | {h} |")
+WORLDS = [("exp1-tree", "500k"), ("exp1-wall", "500k"), ("exp2", "3M"), ("exp3", "3M")]
+FORMS = {"additive", "additive-fixed", "horizon-potential", "first-visit"}
+
+
+def times(arm):
+    return [s["steps_to_threshold"] for s in arm["per_seed"]]
+
+
+def main():
+    for w, budget in WORLDS:
+        path = os.path.join(ROOT, "docs", "results", f"masked-{w}-summary.json")
+        if not os.path.exists(path):
+            continue
+        s = json.load(open(path))
+        arms = {a["name"]: a for a in s["arms"]}
+        comps = {c["arm"]: c for c in s["comparisons"]}
+        base = times(arms["baseline"])
+        tests = {}
+        for name, a in arms.items():
+            if name == "baseline":
+                continue
+            chi2, p, o, e = log_rank(times(a), base)
+            c = comps[name]["log_rank"]
+            assert abs(p - c["p"]) < 1e-9 and abs(o - c["observed_a"]) < 1e-9, (w, name)
+            tests[name] = (p, o > e)
+        # Holm over the four forms.
+        ps = sorted((tests[a][0], a) for a in tests if a in FORMS)
+        holm, run = {}, 0.0
+        for i, (p, a) in enumerate(ps):
+            run = max(run, min(1.0, (len(ps) - i) * p))
+            holm[a] = run
+        print(f"\n{w} (budget {budget})")
+        print("| arm | solved | IQM steps to 0.9 (95% CI) | median | log-rank p vs baseline | Holm (4 forms) |")
+        print("|---|---|---|---|---|---|")
+        for a in s["arms"]:
+            ci = a["iqm_ci"]
+            iq = f"{st(a['iqm_steps'])} ({st(ci[0])} - {st(ci[1])})" if ci else "-"
+            if a["name"] in tests:
+                p, faster = tests[a["name"]]
+                lr = f"{pt(p)} ({'faster' if faster else 'slower'})"
+            else:
+                lr = "-"
+            h = pt(holm[a["name"]]) if a["name"] in holm else "-"
+            print(f"| {a['name']} | {a['reached']}/{a['finished']} | {iq} | {st(a['median_steps'])} | {lr} | {h} |")
+
+
+if __name__ == "__main__":
+    main()

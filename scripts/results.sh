@@ -39,6 +39,7 @@ masked() {
     cp "experiments/masked/$world/plots/$p.png" "$out/masked-$world-$p.png"
   done
   cp "experiments/masked/$world/summary.md" "$out/masked-$world-summary.md"
+  cp "experiments/masked/$world/summary.json" "$out/masked-$world-summary.json"
 }
 if [[ "$mode" != pictures || -d experiments/masked/exp2 ]]; then
   masked exp1-tree 499712
