@@ -127,7 +127,7 @@ if [[ "$mode" != pictures || -d experiments/trap-check ]]; then
       --out "experiments/trap-check/unmasked-$1" -- --no-action-mask --ppo-preset cleanrl
     cp "experiments/trap-check/unmasked-$1/summary.md" "$out/trap-check-unmasked-$1-summary.md"
   done
-  python3 scripts/trap_check_table.py > "$out/trap-check-table.md"
+  python3 scripts/trap_check_table.py --from-experiments > "$out/trap-check-table.md"
 fi
 
 # Noisy worlds: the paper's worlds with slip 0.1 and every tool rule at p = 0.8; the
