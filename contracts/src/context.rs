@@ -1,5 +1,5 @@
 //! Naming what was being done when an error came, typed: `.context(...)` on a result or
-//! an option gives a [`Contextual`] error that keeps the cause as its source, and the
+//! an option gives a [`Contextual`](crate::context::Contextual) error that keeps the cause as its source, and the
 //! libraries' own error types (`fulcrum_run::Error`, the bridge's) take it with `?`.
 
 use std::fmt::Display;
