@@ -5,16 +5,18 @@
 //!
 //! Columns ([`EVAL_COLUMNS`](crate::evalcsv::EVAL_COLUMNS)): the policy's update and
 //! env steps, the world played, the mode (`greedy`, `sample` or `train-greedy`), the
-//! sampling seed, the episodes, then success rate, mean return, mean length and
-//! tool-use rate, each followed by its 95% interval's ends. A resumed run drops the
-//! periodic rows after its checkpoint (it makes them again) and keeps every row
-//! `fulcrum eval` wrote.
+//! sampling seed, the episodes, then success rate, mean return, mean length, tool-use
+//! rate and tool-choice rate (the first tool used fits the task), each followed by its
+//! 95% interval's ends. A resumed run drops the periodic rows after its checkpoint (it
+//! makes them again) and keeps every row `fulcrum eval` wrote. A file written before the
+//! tool-choice columns existed is rewritten with them (empty: `NaN`) before a row is
+//! added.
 
 use std::io::Write as _;
 use std::path::Path;
 
 /// The header of `eval.csv`.
-pub const EVAL_COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi";
+pub const EVAL_COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi";
 
 /// The mode of the rows `train --eval-every` writes: greedy actions, during training.
 pub const PERIODIC: &str = "train-greedy";
@@ -42,6 +44,9 @@ pub struct EvalRow {
     pub length: [f64; 3],
     /// Tool-use rate, and its 95% interval (Wilson).
     pub tool_use: [f64; 3],
+    /// Tool-choice rate (the first tool used fits the task), and its 95% interval
+    /// (Wilson); NaN where no tool can fit.
+    pub tool_choice: [f64; 3],
 }
 
 impl EvalRow {
@@ -49,7 +54,7 @@ impl EvalRow {
     pub fn csv(&self) -> String {
         let f = |v: &[f64; 3]| format!("{},{},{}", v[0], v[1], v[2]);
         format!(
-            "{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{}",
             self.update,
             self.env_steps,
             self.world,
@@ -59,14 +64,16 @@ impl EvalRow {
             f(&self.success),
             f(&self.ret),
             f(&self.length),
-            f(&self.tool_use)
+            f(&self.tool_use),
+            f(&self.tool_choice)
         )
     }
 
-    /// A row of the file; `None` for the header or a torn line.
+    /// A row of the file (of today's 21 columns, or the 18 before tool choice, which
+    /// reads as NaN); `None` for the header or a torn line.
     pub fn parse(line: &str) -> Option<EvalRow> {
         let v: Vec<&str> = line.split(',').collect();
-        if v.len() != 18 {
+        if v.len() != 18 && v.len() != 21 {
             return None;
         }
         let x = |i: usize| v[i].parse::<f64>().ok();
@@ -82,16 +89,23 @@ impl EvalRow {
             ret: three(9)?,
             length: three(12)?,
             tool_use: three(15)?,
+            tool_choice: if v.len() == 21 {
+                three(18)?
+            } else {
+                [f64::NAN; 3]
+            },
         })
     }
 
-    /// TensorBoard's scalars of a periodic evaluation (the point estimates).
-    pub fn scalars(&self) -> [(&'static str, f64); 4] {
+    /// TensorBoard's scalars of a periodic evaluation (the point estimates; a NaN one,
+    /// tool choice where no tool fits, is not written).
+    pub fn scalars(&self) -> [(&'static str, f64); 5] {
         [
             ("eval/success_rate", self.success[0]),
             ("eval/return", self.ret[0]),
             ("eval/episode_length", self.length[0]),
             ("eval/tool_use", self.tool_use[0]),
+            ("eval/tool_choice", self.tool_choice[0]),
         ]
     }
 }
@@ -99,6 +113,7 @@ impl EvalRow {
 /// Append `row` to `path` (with the header when the file is new), in one write, synced
 /// (the learner's checkpoint after it must not outlive it): a crash leaves whole rows.
 pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
+    upgrade(path)?;
     let new = !path.exists();
     let mut file = std::fs::OpenOptions::new()
         .create(true)
@@ -113,6 +128,24 @@ pub fn append(path: &Path, row: &EvalRow) -> std::io::Result<()> {
     text.push('\n');
     file.write_all(text.as_bytes())?;
     file.sync_data()
+}
+
+/// A file of an older header rewritten with today's columns (atomically), its rows
+/// kept; nothing to do for a new or current file.
+fn upgrade(path: &Path) -> std::io::Result<()> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(());
+    };
+    if text.lines().next().is_none_or(|h| h == EVAL_COLUMNS) {
+        return Ok(());
+    }
+    let mut out = String::from(EVAL_COLUMNS);
+    out.push('\n');
+    for row in text.lines().filter_map(EvalRow::parse) {
+        out.push_str(&row.csv());
+        out.push('\n');
+    }
+    fulcrum_contracts::fsio::write_atomic(path, out.as_bytes())
 }
 
 /// Drop the periodic rows of updates after `update` (and torn lines), keeping every
@@ -166,6 +199,7 @@ mod tests {
             ret: [0.7, 0.35, 1.05],
             length: [12.5, 10.0, 15.0],
             tool_use: [1.0, 0.72, 1.0],
+            tool_choice: [0.5, 0.2366, 0.7634],
         }
     }
 
@@ -203,6 +237,37 @@ mod tests {
             ]
         );
         assert_eq!(rows[0].scalars()[0], ("eval/success_rate", 0.7));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+#[cfg(test)]
+mod upgrade_tests {
+    use super::*;
+
+    /// A file of the 18 columns before tool choice: its rows are kept, read with NaN tool
+    /// choice, and the file gets today's header before the next row is added.
+    #[test]
+    fn an_old_file_is_upgraded_before_a_row_is_added() {
+        let dir = std::env::temp_dir().join(format!("fulcrum-evalcsv-old-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("eval.csv");
+        let old_header = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi";
+        let old_row = "3,3072,room,greedy,1,10,1,0.7224672,1,1,1,1,12,12,12,1,0.7224672,1";
+        std::fs::write(&path, format!("{old_header}\n{old_row}\n")).unwrap();
+        let old = EvalRow::parse(old_row).unwrap();
+        assert!(old.tool_choice.iter().all(|x| x.is_nan()));
+        let mut new = old.clone();
+        new.update = 4;
+        new.tool_choice = [1.0, 0.7224672, 1.0];
+        append(&path, &new).unwrap();
+        let text = std::fs::read_to_string(&path).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[0], EVAL_COLUMNS);
+        assert_eq!(lines.len(), 3);
+        assert!(lines[1].starts_with("3,3072,room,greedy,") && lines[1].ends_with(",NaN,NaN,NaN"));
+        assert_eq!(EvalRow::parse(lines[2]).unwrap(), new);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

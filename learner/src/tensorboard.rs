@@ -24,8 +24,8 @@
 //! column as a scalar whose tag is the column's name, at step = env steps (values that
 //! are not finite, such as the success rate of an update in which no episode ended, are
 //! left out, as `metrics.csv` leaves them empty). With `train --eval-every`, each
-//! periodic evaluation adds `eval/success_rate`, `eval/return`, `eval/episode_length`
-//! and `eval/tool_use` at its env steps. `metrics.csv` and `eval.csv` stay the record: on
+//! periodic evaluation adds `eval/success_rate`, `eval/return`, `eval/episode_length`,
+//! `eval/tool_use` and `eval/tool_choice` (where a tool fits the task) at its env steps. `metrics.csv` and `eval.csv` stay the record: on
 //! `--resume` the events are written again from the rows they keep.
 
 use std::fs::File;

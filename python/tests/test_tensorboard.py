@@ -65,6 +65,7 @@ def assert_events_equal_evals(run):
         ("eval/return", "return"),
         ("eval/episode_length", "length"),
         ("eval/tool_use", "tool_use"),
+        ("eval/tool_choice", "tool_choice"),
     ]:
         got = [(e.step, e.value) for e in acc.Scalars(tag)]
         assert [s for s, _ in got] == [int(r["env_steps"]) for r in rows], tag

@@ -4,8 +4,10 @@
 //!
 //! Per episode: success (the task's terminal state reached), return (the task's reward),
 //! length (steps), tool use (a tool held at the end: tools are picked up, never
-//! dropped). Summaries carry 95% confidence intervals: Wilson's score interval for the
-//! two rates, `mean +/- t_{0.975, n-1} * sd / sqrt(n)` (Student's t) for return and
+//! dropped) and tool choice (the first tool the agent used, at the direction prompt, is
+//! one that fits the task: [`World::fitting_tools`], by the rule table; an episode
+//! without a tool use counts as a wrong choice; not defined for a push task). Summaries
+//! carry 95% confidence intervals: Wilson's score interval for the three rates, `mean +/- t_{0.975, n-1} * sd / sqrt(n)` (Student's t) for return and
 //! length. Greedy episodes of a deterministic world from one start are all the same
 //! episode, so their interval is the point; `--sample` gives a spread.
 
@@ -36,6 +38,11 @@ pub struct Episode {
     pub length: u32,
     /// A tool was held at the end.
     pub tool_use: bool,
+    /// The first tool used (its index), if any.
+    pub first_tool: Option<u8>,
+    /// Whether that tool fits the world's task (`None` where no tool can: a push task,
+    /// or none; `Some(false)` when no tool was used).
+    pub tool_fits: Option<bool>,
 }
 
 /// A point estimate and its 95% interval.
@@ -62,6 +69,9 @@ pub struct Summary {
     pub length: Estimate,
     /// Share of episodes that picked a tool up (Wilson interval).
     pub tool_use: Estimate,
+    /// Share of episodes whose first tool use is a tool that fits the task (Wilson
+    /// interval; NaN where no tool can fit: a push task, or none).
+    pub tool_choice: Estimate,
 }
 
 /// Wilson's 95% score interval for `k` successes in `n` trials.
@@ -119,9 +129,11 @@ pub fn mean_ci(xs: &[f64]) -> Estimate {
     }
 }
 
-/// The summary of `eps`.
+/// The summary of `eps` (tool choice over the episodes whose world has a tool that fits).
 pub fn summarise(eps: &[Episode]) -> Summary {
     let n = eps.len();
+    let judged: Vec<bool> = eps.iter().filter_map(|e| e.tool_fits).collect();
+    let tool_choice = wilson(judged.iter().filter(|&&f| f).count(), judged.len());
     let f = |g: fn(&Episode) -> f64| eps.iter().map(g).collect::<Vec<f64>>();
     Summary {
         episodes: n,
@@ -129,6 +141,7 @@ pub fn summarise(eps: &[Episode]) -> Summary {
         ret: mean_ci(&f(|e| e.ret)),
         length: mean_ci(&f(|e| e.length as f64)),
         tool_use: wilson(eps.iter().filter(|e| e.tool_use).count(), n),
+        tool_choice,
     }
 }
 
@@ -177,38 +190,62 @@ pub fn play(
     greedy: bool,
     seed: u64,
 ) -> Vec<Episode> {
-    let spec = view.spec(world);
-    let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut act, mut lp, mut v) = ([0u8], [0.0f32], [0.0f32]);
-    let mut out = Vec::with_capacity(episodes);
-    for _ in 0..episodes {
-        let mut ep = world.reset();
-        let mut ret = 0.0f64;
-        view.observe(world, &ep.state, &mut g, &mut f);
-        loop {
-            let a = if greedy {
-                policy.greedy(&g, &f)
-            } else {
-                policy.act(&g, &f, &mut rng, &mut act, &mut lp, &mut v);
-                act[0]
-            };
-            let prev = ep.state;
-            let o = world.env_step_drawn(&mut ep, a, || rng.next_u64());
-            view.update(world, &prev, &ep.state, &mut g, &mut f);
-            ret += o.reward as f64;
-            if o.terminated || o.truncated {
-                out.push(Episode {
-                    success: o.terminated,
-                    ret,
-                    length: ep.t,
-                    tool_use: ep.state.inventory != 0,
-                });
-                break;
+    (0..episodes)
+        .map(|_| {
+            episode(view, world, &mut rng, |g, f, _, rng| {
+                if greedy {
+                    policy.greedy(g, f)
+                } else {
+                    policy.act(g, f, rng, &mut act, &mut lp, &mut v);
+                    act[0]
+                }
+            })
+        })
+        .collect()
+}
+
+/// One episode from the initial state, each action chosen by `choose` from the
+/// observation (glyphs, flags), the state and the generator (which also draws a
+/// stochastic world's outcomes, after the action).
+pub fn episode(
+    view: View,
+    world: &World,
+    rng: &mut ChaCha8Rng,
+    mut choose: impl FnMut(&[u8], &[u8], &fulcrum_world::State, &mut ChaCha8Rng) -> u8,
+) -> Episode {
+    let spec = view.spec(world);
+    let (mut g, mut f) = (vec![0u8; spec.cells()], vec![0u8; spec.flags]);
+    let mut ep = world.reset();
+    let mut ret = 0.0f64;
+    let mut first_tool = None;
+    view.observe(world, &ep.state, &mut g, &mut f);
+    loop {
+        let a = choose(&g, &f, &ep.state, rng);
+        let prev = ep.state;
+        // A direction at the direction prompt: tool k acts.
+        if let fulcrum_world::Mode::ChoosingDirection(k) = prev.mode() {
+            if a < fulcrum_world::APPLY && first_tool.is_none() {
+                first_tool = Some(k);
             }
         }
+        let o = world.env_step_drawn(&mut ep, a, || rng.next_u64());
+        view.update(world, &prev, &ep.state, &mut g, &mut f);
+        ret += o.reward as f64;
+        if o.terminated || o.truncated {
+            return Episode {
+                success: o.terminated,
+                ret,
+                length: ep.t,
+                tool_use: ep.state.inventory != 0,
+                first_tool,
+                tool_fits: world
+                    .fitting_tools()
+                    .map(|fit| first_tool.is_some_and(|k| fit.contains(&(k as usize)))),
+            };
+        }
     }
-    out
 }
 
 /// The periodic evaluation of `train --eval-every`: the learner's weights played
@@ -251,6 +288,7 @@ impl Summary {
             ret: t(&self.ret),
             length: t(&self.length),
             tool_use: t(&self.tool_use),
+            tool_choice: t(&self.tool_choice),
         }
     }
 }
@@ -258,6 +296,128 @@ impl Summary {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The moves of a shortest walk (the world's own step, moves only) from the initial
+    /// state to holding tool `k`.
+    fn walk_to_tool(w: &World, k: usize) -> Vec<u8> {
+        use std::collections::{HashMap, VecDeque};
+        let start = w.initial;
+        let mut back: HashMap<fulcrum_world::State, (fulcrum_world::State, u8)> = HashMap::new();
+        let mut q = VecDeque::from([start]);
+        while let Some(s) = q.pop_front() {
+            if s.inventory >> k & 1 == 1 {
+                let mut path = Vec::new();
+                let mut at = s;
+                while at != start {
+                    let (prev, a) = back[&at];
+                    path.push(a);
+                    at = prev;
+                }
+                path.reverse();
+                return path;
+            }
+            for a in [
+                fulcrum_world::NORTH,
+                fulcrum_world::EAST,
+                fulcrum_world::SOUTH,
+                fulcrum_world::WEST,
+            ] {
+                let n = w.step(&s, a);
+                if n != start && !back.contains_key(&n) {
+                    back.insert(n, (s, a));
+                    q.push_back(n);
+                }
+            }
+        }
+        panic!("tool {k} out of reach in {}", w.name);
+    }
+
+    /// Fewest moves from the agent to each tool's cell over the floor (the map's glyphs:
+    /// rock and objects block), counted here from the rendered map.
+    fn grid_moves(w: &World) -> Vec<usize> {
+        let rows: Vec<Vec<char>> = w
+            .render(&w.initial)
+            .lines()
+            .map(|l| l.chars().collect())
+            .collect();
+        let mut d = vec![vec![usize::MAX; w.width]; w.height];
+        let (ax, ay) = (w.initial.x as usize, w.initial.y as usize);
+        d[ay][ax] = 0;
+        let mut q = std::collections::VecDeque::from([(ax, ay)]);
+        while let Some((x, y)) = q.pop_front() {
+            for (nx, ny) in [(x, y - 1), (x + 1, y), (x, y + 1), (x - 1, y)] {
+                let c = rows[ny][nx];
+                if d[ny][nx] == usize::MAX && (c == '.' || c.is_ascii_lowercase()) {
+                    d[ny][nx] = d[y][x] + 1;
+                    q.push_back((nx, ny));
+                }
+            }
+        }
+        w.tools
+            .iter()
+            .map(|t| d[t.pos.1 as usize][t.pos.0 as usize])
+            .collect()
+    }
+
+    /// Two scripted agents on 60 layouts of `toolbox`: one walks to the nearest tool and
+    /// uses it, the other to a tool that fits the task object and uses it. The figure must
+    /// give the second 60 of 60 and the first exactly the layouts where the nearest tool
+    /// happens to fit (counted here from the map and the rule table of docs/world.md).
+    #[test]
+    fn tool_choice_tells_the_nearest_tool_from_the_fitting_one() {
+        let fam = fulcrum_world::family::load_family("toolbox").unwrap();
+        let fits = |kind: &str, object: fulcrum_world::ObjectKind| match object {
+            fulcrum_world::ObjectKind::Tree => kind == "axe",
+            fulcrum_world::ObjectKind::Wall => kind == "pickaxe",
+            fulcrum_world::ObjectKind::Boulder => kind == "pickaxe" || kind == "wand",
+            fulcrum_world::ObjectKind::Door => false,
+        };
+        let (mut nearest_eps, mut fitting_eps, mut nearest_fits) = (Vec::new(), Vec::new(), 0);
+        for seed in 0..60 {
+            let w = fam.layout(seed).unwrap();
+            let object = w.objects[0].kind;
+            let d = grid_moves(&w);
+            let nearest = (0..w.tools.len()).min_by_key(|&k| (d[k], k)).unwrap();
+            let fitting = (0..w.tools.len())
+                .find(|&k| fits(&w.tools[k].kind, object))
+                .unwrap();
+            if fits(&w.tools[nearest].kind, object) {
+                nearest_fits += 1;
+            }
+            for (k, out) in [(nearest, &mut nearest_eps), (fitting, &mut fitting_eps)] {
+                let mut plan = walk_to_tool(&w, k);
+                plan.extend([
+                    fulcrum_world::APPLY,
+                    fulcrum_world::SELECT0 + k as u8,
+                    fulcrum_world::NORTH,
+                ]);
+                let mut plan = plan.into_iter();
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                // After the plan: select in normal mode, which does nothing.
+                let ep = episode(View::Full, &w, &mut rng, |_, _, _, _| {
+                    plan.next().unwrap_or(fulcrum_world::SELECT0)
+                });
+                assert_eq!(ep.first_tool, Some(k as u8), "layout {seed}");
+                out.push(ep);
+            }
+        }
+        let (n, f) = (summarise(&nearest_eps), summarise(&fitting_eps));
+        assert_eq!(f.tool_choice.value, 1.0);
+        assert_eq!(n.tool_choice.value, nearest_fits as f64 / 60.0);
+        assert!(
+            nearest_fits < 60 && nearest_fits > 0,
+            "the case must tell them apart: {nearest_fits}"
+        );
+        assert_eq!(n.tool_choice, wilson(nearest_fits, 60));
+        // A push task has no tool that fits: the figure is not defined.
+        let push = fulcrum_world::load_world("exp3").unwrap();
+        let mut rng = ChaCha8Rng::seed_from_u64(1);
+        let ep = episode(View::Full, &push, &mut rng, |_, _, _, _| {
+            fulcrum_world::NORTH
+        });
+        assert_eq!(ep.tool_fits, None);
+        assert!(summarise(&[ep]).tool_choice.value.is_nan());
+    }
 
     #[test]
     fn wilson_matches_scipy() {

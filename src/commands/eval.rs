@@ -47,6 +47,17 @@ pub fn run(a: &EvalArgs) -> Result<()> {
     println!("return          {}", iv(&s.ret, false));
     println!("episode length  {}", iv(&s.length, false));
     println!("tool use        {}", iv(&s.tool_use, true));
+    match world.fitting_tools() {
+        Some(fit) => println!(
+            "tool choice     {} (first tool used is one that fits the task: {})",
+            iv(&s.tool_choice, true),
+            fit.iter()
+                .map(|&k| world.tools[k].name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None => println!("tool choice     - (no tool fits a task of this world)"),
+    }
     let path = paths.eval();
     fulcrum_learner::evalcsv::append(&path, &s.row(update, steps, &world.name, mode, seed))
         .with_context(|| format!("cannot write {}", path.display()))?;

@@ -102,7 +102,8 @@ fn show(name: &str, layout: Option<u64>, as_json: bool, as_toml: bool) -> Result
             "states": e.space.len(),
             "normal_states": e.normal_states(),
             "hash": format!("{:016x}", w.content_hash()),
-            "family": family.as_ref().map(|(f, n)| json!({"name": f.name, "layout": n, "fitting_tools": f.fitting_tools(&w).iter().map(|&k| w.tools[k].name.clone()).collect::<Vec<_>>()})),
+            "fitting_tools": w.fitting_tools().map(|v| v.iter().map(|&k| w.tools[k].name.clone()).collect::<Vec<_>>()),
+            "family": family.as_ref().map(|(f, n)| json!({"name": f.name, "layout": n})),
         });
         println!("{}", serde_json::to_string_pretty(&v)?);
         return Ok(());
@@ -112,8 +113,9 @@ fn show(name: &str, layout: Option<u64>, as_json: bool, as_toml: bool) -> Result
         w.name, w.width, w.height, w.max_steps
     );
     if let Some((f, n)) = &family {
-        let fits: Vec<String> = f
-            .fitting_tools(&w)
+        let fits: Vec<String> = w
+            .fitting_tools()
+            .unwrap_or_default()
             .iter()
             .map(|&k| w.tools[k].name.clone())
             .collect();

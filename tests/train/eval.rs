@@ -83,6 +83,15 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
         "{text}"
     );
     assert!(figure(&text, "success rate") >= trained, "{text}");
+    // room has one tool, the axe, which fits its tree: every success used it first.
+    assert!(
+        figure(&text, "tool choice") >= figure(&text, "success rate"),
+        "{text}"
+    );
+    assert!(
+        text.contains("(first tool used is one that fits the task: axe)"),
+        "{text}"
+    );
     // Greedy play from one start in a deterministic world is one episode, 20 times:
     // the interval of its length is the point, and a second evaluation is the same.
     let len = figure(&text, "episode length");
@@ -147,7 +156,9 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
         lines[5],
         "{csv}"
     );
-    assert!(lines.iter().all(|l| l.split(',').count() == 18), "{csv}");
+    assert!(lines.iter().all(|l| l.split(',').count() == 21), "{csv}");
+    assert!(lines[0]
+        .ends_with(",tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi"));
 }
 
 /// A policy that sees the 5 x 5 window around the agent plays a larger room with the

@@ -387,22 +387,6 @@ impl Family {
         parse_world(&text, &format!("{}-{seed}", self.name))
     }
 
-    /// Tool kinds of the family that destroy the task object of `w` (a layout of it):
-    /// the tools a tool-choice figure counts as fitting.
-    pub fn fitting_tools(&self, w: &World) -> Vec<usize> {
-        let Some(task) = w
-            .objects
-            .iter()
-            .find(|o| o.kind != ObjectKind::Door || !self.divider)
-        else {
-            return Vec::new();
-        };
-        let d = destroyers(task.kind);
-        (0..self.tools.len())
-            .filter(|&k| d.contains(&self.tools[k]))
-            .collect()
-    }
-
     /// One draw of a layout's file from `rng`.
     fn draw(&self, rng: &mut ChaCha8Rng, seed: u64) -> String {
         let (w, h) = (self.width, self.height);

@@ -297,6 +297,28 @@ impl World {
         5 + self.tools.len()
     }
 
+    /// The tools that fit the task: for a destroy task, the tools (by index) with a rule
+    /// of this world's table that destroys one of the task's objects from the condition it
+    /// starts in (intact, or a closed door); `None` for a push task or no task, where no
+    /// tool fits by the rule table. What the tool-choice figure of an evaluation counts.
+    pub fn fitting_tools(&self) -> Option<Vec<usize>> {
+        let Task::Destroy(list) = &self.task else {
+            return None;
+        };
+        Some(
+            (0..self.tools.len())
+                .filter(|&k| {
+                    self.rules.iter().any(|r| {
+                        r.tool == self.tools[k].kind
+                            && r.from == INTACT
+                            && r.to == DESTROYED
+                            && list.iter().any(|&i| self.objects[i].kind == r.target)
+                    })
+                })
+                .collect(),
+        )
+    }
+
     /// The action subset of tool j: {N, E, S, W, apply, select_j}.
     pub fn tool_actions(&self, j: usize) -> [u8; 6] {
         [NORTH, EAST, SOUTH, WEST, APPLY, SELECT0 + j as u8]
