@@ -139,7 +139,6 @@ fulcrum_contracts::sources!(
     fulcrum_contracts::checkpoint::CheckpointError,
     fulcrum_learner::error::LearnerError,
     fulcrum_actors::ActorError,
-    crate::lock::LockError,
     fulcrum_empowerment::EngineError,
     serde_json::Error,
     toml::de::Error,

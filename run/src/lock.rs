@@ -47,6 +47,12 @@ pub enum LockError {
     },
 }
 
+impl From<LockError> for crate::error::Error {
+    fn from(e: LockError) -> Self {
+        crate::error::Error::Source(Box::new(e))
+    }
+}
+
 /// A held lock on a directory; released when dropped (and by the kernel when this
 /// process and every child that inherited it have exited).
 #[derive(Debug)]

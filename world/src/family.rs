@@ -25,6 +25,7 @@ use serde::Deserialize;
 use toml::Spanned;
 
 use crate::generate::fewest_steps_to_task;
+pub use crate::parse::is_family_text;
 use crate::parse::{parse_world, Ctx, WorldError, MAX_HORIZON};
 use crate::state::MAX_TOOLS;
 use crate::world::{default_rules, ObjectKind, World, DESTROYED, MAX_SIDE};
@@ -90,13 +91,6 @@ struct RawEmpowerment {
     horizon_unequipped: Option<Spanned<i64>>,
     horizon_equipped: Option<Spanned<i64>>,
     beta: Option<Spanned<f64>>,
-}
-
-/// Whether a world file's text describes a family (has a `[family]` table).
-pub fn is_family_text(text: &str) -> bool {
-    text.parse::<toml::Table>()
-        .map(|t| t.contains_key("family"))
-        .unwrap_or(false)
 }
 
 /// Whether `name_or_path` names a family: a built-in family or a family file.

@@ -233,10 +233,17 @@ impl Ctx<'_> {
     }
 }
 
+/// Whether a world file's text describes a family (has a `[family]` table).
+pub fn is_family_text(text: &str) -> bool {
+    text.parse::<toml::Table>()
+        .map(|t| t.contains_key("family"))
+        .unwrap_or(false)
+}
+
 /// Parse and validate a world file's text. `file` names it in errors.
 pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     let cx = Ctx { text, file };
-    if crate::family::is_family_text(text) {
+    if is_family_text(text) {
         return Err(cx.file(
             "this is a world family (a layout per seed), not one world: show a layout with `fulcrum world show FAMILY --layout N`, or write one out with --toml",
         ));
