@@ -34,7 +34,11 @@ mode=${1:-all}
 masked() {
   local world=$1 steps=$2
   local arms=baseline,additive,additive-fixed,horizon-potential,first-visit,cleanrl,baseline-unmasked,rllib
-  quiet_if_pictures $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" --out "experiments/masked/$world"
+  # On the 3M worlds the table's horizon-potential had beta 0.05 (the default when it was
+  # made; today's default is 0.4 / max Phi): the sweep arm reproduces it.
+  local sweep=()
+  if [[ "$steps" == 2998272 ]]; then sweep=(--beta-sweep 0.05 --intrinsic horizon-potential); fi
+  quiet_if_pictures $f experiment "$world" --seeds 10 --steps "$steps" --arms "$arms" "${sweep[@]}" --out "experiments/masked/$world"
   for p in success solved; do
     cp "experiments/masked/$world/plots/$p.png" "$out/masked-$world-$p.png"
   done
