@@ -81,16 +81,6 @@ impl Error {
             Error::Context(_) | Error::Failed(_) => Kind::Failure,
         }
     }
-
-    /// A failure described by this crate.
-    pub fn failed(msg: impl Into<String>) -> Error {
-        Error::Failed(msg.into())
-    }
-
-    /// Another crate's error, kept as it is.
-    pub fn source(e: impl Into<Source>) -> Error {
-        Error::Source(e.into())
-    }
 }
 
 /// The run library's results.

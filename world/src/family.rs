@@ -28,7 +28,7 @@ use crate::generate::fewest_steps_to_task;
 pub use crate::parse::is_family_text;
 use crate::parse::{parse_world, Ctx, WorldError, MAX_HORIZON};
 use crate::state::MAX_TOOLS;
-use crate::world::{default_rules, ObjectKind, World, DESTROYED, MAX_SIDE};
+use crate::world::{default_rules, ObjectKind, World, MAX_SIDE};
 
 /// Draws of one layout seed before the family is called unsolvable at that seed.
 pub const MAX_DRAWS: u32 = 1000;
@@ -125,7 +125,7 @@ pub fn load_family(name_or_path: &str) -> Result<Family, WorldError> {
 pub fn destroyers(kind: ObjectKind) -> Vec<String> {
     let mut v: Vec<String> = default_rules()
         .into_iter()
-        .filter(|r| r.target == kind && r.from == 0 && r.to == DESTROYED)
+        .filter(|r| r.destroys_from_start(kind))
         .map(|r| r.tool)
         .collect();
     v.dedup();

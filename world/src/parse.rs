@@ -243,14 +243,16 @@ pub fn is_family_text(text: &str) -> bool {
 /// Parse and validate a world file's text. `file` names it in errors.
 pub fn parse_world(text: &str, file: &str) -> Result<World, WorldError> {
     let cx = Ctx { text, file };
-    if is_family_text(text) {
-        return Err(cx.file(
-            "this is a world family (a layout per seed), not one world: show a layout with `fulcrum world show FAMILY --layout N`, or write one out with --toml",
-        ));
-    }
-    let raw: RawWorld = cx.toml()?;
-    let name = cx.name("world", &raw.name)?;
-    let name = &name;
+    // A family has no map, so it fails here; only then is it told apart (one TOML read
+    // for every world file).
+    let raw: RawWorld = cx.toml().map_err(|e| {
+        if is_family_text(text) {
+            cx.file("this is a world family (a layout per seed), not one world: show a layout with `fulcrum world show FAMILY --layout N`, or write one out with --toml")
+        } else {
+            e
+        }
+    })?;
+    let name = &cx.name("world", &raw.name)?;
     let max_steps = cx.max_steps(&raw.max_steps)?;
     let tool_decl = tool_decl(&cx, &raw.tools)?;
     let map = MapText::new(text, &raw.map);

@@ -177,6 +177,14 @@ pub struct Rule {
     pub p: f64,
 }
 
+impl Rule {
+    /// Whether the rule destroys an object of `kind` from the condition it starts in
+    /// (intact, or a closed door): what makes a tool fit a destroy task.
+    pub fn destroys_from_start(&self, kind: ObjectKind) -> bool {
+        self.target == kind && self.from == INTACT && self.to == DESTROYED
+    }
+}
+
 /// The default rule table (`docs/world.md`, "What tools do").
 pub fn default_rules() -> Vec<Rule> {
     use ObjectKind::*;
@@ -310,9 +318,9 @@ impl World {
                 .filter(|&k| {
                     self.rules.iter().any(|r| {
                         r.tool == self.tools[k].kind
-                            && r.from == INTACT
-                            && r.to == DESTROYED
-                            && list.iter().any(|&i| self.objects[i].kind == r.target)
+                            && list
+                                .iter()
+                                .any(|&i| r.destroys_from_start(self.objects[i].kind))
                     })
                 })
                 .collect(),

@@ -335,7 +335,9 @@ pub(super) fn family_layouts(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
             .clone()
             .context("a family's layout names its task object")?;
         let tool = fulcrum_empowerment::request::tool_sel(&w, &engine, None, &set)?;
-        let table = engine.lookup_values(tool, &set, 8, 3, true)?;
+        let e = &w.empowerment;
+        let table =
+            engine.lookup_values(tool, &set, e.horizon_unequipped, e.horizon_equipped, true)?;
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
         ensure!(table.len() == engine.space.len(), "one value per state");
         states.push(table.len() as f64);
