@@ -26,6 +26,7 @@
 
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::Duration;
 
 use fulcrum_contracts::config::RunConfig;
@@ -48,8 +49,9 @@ use rand_chacha::ChaCha8Rng;
 use crate::error::ActorError;
 use crate::policy::Policy;
 use crate::resume::{reset_unknown_states, resume_records};
-use crate::service::{connect, pump};
+use crate::service::{connect, pump, Asked};
 use crate::weights::WeightsIn;
+use crate::worlds::EnvWorlds;
 use fulcrum_contracts::IpcError;
 
 /// Who this actor is.
@@ -182,7 +184,13 @@ struct Lookups {
 /// the buffers a chunk reuses. One method per phase of a chunk: [`Actor::collect`],
 /// [`Actor::look_up`], [`Actor::rewards`], [`Actor::send`], [`Actor::receive_weights`].
 struct Actor<'a> {
+    /// The run's world (on a family, the family's [`fulcrum_world::family::Family::run_world`]):
+    /// the shape, the actions and the hash every chunk carries.
     world: &'a World,
+    /// What each env plays: the one world, or a family's layouts.
+    worlds: EnvWorlds,
+    /// Each env's current world (on a family, its episode's layout).
+    env_world: Vec<Arc<World>>,
     cfg: &'a RunConfig,
     namespace: &'a str,
     id: ActorId,
@@ -212,8 +220,16 @@ struct Actor<'a> {
     inv: Vec<u16>,
     paid: Vec<bool>,
     next_inv: Vec<u16>,
-    /// The chunk's states reached, their values from the service and the rewards.
+    /// The chunk's states reached (on a family, with their layouts), their values from
+    /// the service and the rewards.
     next_states: Vec<State>,
+    next_layouts: Vec<u64>,
+    /// Potential forms on a family: the initial states of the episodes begun in the chunk
+    /// (transition, state, layout), their potentials, and the potential each transition's
+    /// world resets to (where it ends an episode).
+    resets: Vec<(usize, State, u64)>,
+    reset_vals: Vec<f32>,
+    reset_phi: Vec<f32>,
     intrinsic: Vec<f32>,
     bonus: Vec<f32>,
     lookups: Lookups,
@@ -294,12 +310,16 @@ impl<'a> Actor<'a> {
         };
 
         // Worlds: from the checkpoint when it was taken at this policy version.
-        let mut envs: Vec<EnvRecord> = (0..m).map(|_| EnvRecord::new(world.reset())).collect();
-        if let Some(mut recs) = resume_records(checkpoint_path, shape, id.index, v0, m, world) {
+        let mut worlds = EnvWorlds::new(world, cfg)?;
+        let (mut env_world, mut envs): (Vec<Arc<World>>, Vec<EnvRecord>) =
+            worlds.first(cfg.seed, id.index, m)?.into_iter().unzip();
+        if let Some(mut recs) =
+            resume_records(checkpoint_path, shape, id.index, v0, m, &mut worlds)?
+        {
             if let Some(cl) = client.as_mut() {
-                reset_unknown_states(cl, id.index, world, &mut recs);
+                reset_unknown_states(cl, id.index, &mut worlds, &mut recs)?;
             }
-            envs = recs;
+            (env_world, envs) = recs.into_iter().unzip();
             tracing::info!(
                 actor = id.index,
                 version = v0,
@@ -310,6 +330,8 @@ impl<'a> Actor<'a> {
         let int_len = if cfg.intrinsic_value_head { m } else { 0 };
         let mut actor = Actor {
             world,
+            worlds,
+            env_world,
             cfg,
             namespace,
             id,
@@ -335,6 +357,10 @@ impl<'a> Actor<'a> {
             cur_f: vec![0u8; m * f],
             next_inv: Vec::with_capacity(n),
             next_states: Vec::with_capacity(n),
+            next_layouts: Vec::with_capacity(n),
+            resets: Vec::new(),
+            reset_vals: Vec::new(),
+            reset_phi: vec![0.0f32; n],
             intrinsic: vec![0.0f32; n],
             bonus: vec![0.0f32; n],
             lookups: Lookups::default(),
@@ -352,7 +378,7 @@ impl<'a> Actor<'a> {
         }
         for (e, r) in actor.envs.iter().enumerate() {
             cfg.view.observe(
-                world,
+                &actor.env_world[e],
                 &r.episode.state,
                 &mut actor.cur_g[e * c..(e + 1) * c],
                 &mut actor.cur_f[e * f..(e + 1) * f],
@@ -367,7 +393,10 @@ impl<'a> Actor<'a> {
     fn initial_potentials(&mut self) -> Result<bool, ActorError> {
         let m = self.envs.len();
         let mut ask_states: Vec<State> = self.envs.iter().map(|r| r.episode.state).collect();
+        let mut ask_layouts: Vec<u64> = self.envs.iter().map(|r| r.layout).collect();
         ask_states.push(self.world.reset().state);
+        ask_layouts.push(0);
+        let layouts = self.worlds.is_family().then_some(ask_layouts.as_slice());
         let mut vals = vec![0.0f32; ask_states.len()];
         while let Some(cl) = self.client.as_mut() {
             let (mut sent, mut got) = (0, 0);
@@ -376,7 +405,10 @@ impl<'a> Actor<'a> {
                 result = pump(
                     cl,
                     self.ask,
-                    &ask_states,
+                    Asked {
+                        states: &ask_states,
+                        layouts,
+                    },
                     &mut sent,
                     &mut got,
                     &mut vals,
@@ -441,10 +473,12 @@ impl<'a> Actor<'a> {
             ..ChunkHeader::default()
         };
         self.next_states.clear();
+        self.next_layouts.clear();
+        self.resets.clear();
         self.finals.clear();
         let carry: Vec<f32> = self.envs.iter().map(|r| r.int_return).collect();
         self.lookups = Lookups::default();
-        self.collect(sample.payload_mut(), &mut h, &mut rng);
+        self.collect(sample.payload_mut(), &mut h, &mut rng)?;
         if !self.look_up()? {
             return Ok(false);
         }
@@ -475,10 +509,16 @@ impl<'a> Actor<'a> {
     /// they are collected (pipelined: it answers while the actor steps on); then the
     /// values after the chunk, and of truncated episodes' final observations (in one
     /// batch).
-    fn collect(&mut self, buf: &mut [u8], h: &mut ChunkHeader, rng: &mut ChaCha8Rng) {
+    fn collect(
+        &mut self,
+        buf: &mut [u8],
+        h: &mut ChunkHeader,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<(), ActorError> {
         let t_len = self.layout.steps;
+        let family = self.worlds.is_family();
         for t in 0..t_len {
-            self.step(buf, t, h, rng);
+            self.step(buf, t, h, rng)?;
             // Pipelined lookups: send what is collected, collect what has come back.
             if let Some(cl) = self.client.as_mut().filter(|_| !self.lookups.failed) {
                 let ready = self.next_states.len() - self.lookups.sent;
@@ -486,7 +526,10 @@ impl<'a> Actor<'a> {
                     if let Err(e) = pump(
                         cl,
                         self.ask,
-                        &self.next_states,
+                        Asked {
+                            states: &self.next_states,
+                            layouts: family.then_some(self.next_layouts.as_slice()),
+                        },
                         &mut self.lookups.sent,
                         &mut self.lookups.answered,
                         &mut self.intrinsic,
@@ -499,13 +542,20 @@ impl<'a> Actor<'a> {
             }
         }
         self.final_values(buf);
+        Ok(())
     }
 
     /// Step t of the chunk: each world's observation o_t into the sample, the policy on
     /// the M observations (one batch), a_t from our seeded generator, the worlds stepped,
     /// r_t, terminated/truncated and s_{t+1} recorded; ended episodes counted into the
     /// header and their worlds reset.
-    fn step(&mut self, buf: &mut [u8], t: usize, h: &mut ChunkHeader, rng: &mut ChaCha8Rng) {
+    fn step(
+        &mut self,
+        buf: &mut [u8],
+        t: usize,
+        h: &mut ChunkHeader,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<(), ActorError> {
         let layout = self.layout;
         let (m, c, f) = (layout.envs, layout.cells, layout.flags);
         let base = t * m;
@@ -533,11 +583,11 @@ impl<'a> Actor<'a> {
             let prev = rec.episode.state;
             // A stochastic world's outcome is drawn from the chunk's generator, after the
             // actions: a deterministic world draws nothing, so its stream is unchanged.
-            let out = self
-                .world
-                .env_step_drawn(&mut rec.episode, self.acts[e], || rng.next_u64());
+            let world = &self.env_world[e];
+            let out = world.env_step_drawn(&mut rec.episode, self.acts[e], || rng.next_u64());
             let next = rec.episode.state;
             self.next_states.push(next);
+            self.next_layouts.push(rec.layout);
             rec.ext_return += out.reward;
             rec.picked |= next.inventory != 0 && prev.inventory != next.inventory;
             buf[layout.range(Section::Actions).start + i] = self.acts[e];
@@ -551,7 +601,7 @@ impl<'a> Actor<'a> {
                 if out.truncated {
                     let mut gg = vec![0u8; c];
                     let mut ff = vec![0u8; f];
-                    self.cfg.view.observe(self.world, &next, &mut gg, &mut ff);
+                    self.cfg.view.observe(world, &next, &mut gg, &mut ff);
                     self.finals.push((i, gg, ff));
                 }
                 h.episodes += 1;
@@ -559,16 +609,21 @@ impl<'a> Actor<'a> {
                 h.pickups += rec.picked as u32;
                 h.ext_return_sum += rec.ext_return as f64;
                 h.length_sum += rec.episode.t as f64;
-                *rec = EnvRecord::new(self.world.reset());
+                let (new_world, new_rec) = self.worlds.fresh(|| rng.next_u64())?;
+                *rec = new_rec;
+                if self.worlds.is_family() && self.form.is_potential() {
+                    self.resets.push((i, rec.episode.state, rec.layout));
+                }
                 self.cfg.view.observe(
-                    self.world,
+                    &new_world,
                     &rec.episode.state,
                     &mut self.cur_g[ge],
                     &mut self.cur_f[fe],
                 );
+                self.env_world[e] = new_world;
             } else {
                 self.cfg.view.update(
-                    self.world,
+                    world,
                     &prev,
                     &next,
                     &mut self.cur_g[ge],
@@ -576,6 +631,7 @@ impl<'a> Actor<'a> {
                 );
             }
         }
+        Ok(())
     }
 
     /// Values after the chunk, and of truncated episodes' final observations.
@@ -615,13 +671,17 @@ impl<'a> Actor<'a> {
             return Ok(true);
         };
         let mut failed = self.lookups.failed;
+        let family = self.worlds.is_family();
         loop {
             if !failed {
                 while self.lookups.answered < n {
                     if let Err(e) = pump(
                         cl,
                         self.ask,
-                        &self.next_states,
+                        Asked {
+                            states: &self.next_states,
+                            layouts: family.then_some(self.next_layouts.as_slice()),
+                        },
                         &mut self.lookups.sent,
                         &mut self.lookups.answered,
                         &mut self.intrinsic,
@@ -633,7 +693,10 @@ impl<'a> Actor<'a> {
                     }
                 }
                 if !failed {
-                    break;
+                    match look_up_resets(cl, self.ask, &self.resets, &mut self.reset_vals) {
+                        Ok(()) => break,
+                        Err(e) => tracing::warn!(actor = self.id.index, "empowerment service: {e}"),
+                    }
                 }
             }
             // Reconnect and ask for the whole chunk again.
@@ -669,16 +732,34 @@ impl<'a> Actor<'a> {
         self.next_inv.clear();
         self.next_inv
             .extend(self.next_states.iter().map(|s| s.inventory));
-        shaping.chunk(
-            &self.intrinsic,
-            &self.next_inv,
-            &buf[term..term + n],
-            &buf[trunc..trunc + n],
-            &mut self.phi,
-            &mut self.inv,
-            &mut self.paid,
-            &mut self.bonus,
-        );
+        if self.worlds.is_family() {
+            // Each world resets to its next layout's initial state.
+            for (&(i, _, _), &v) in self.resets.iter().zip(&self.reset_vals) {
+                self.reset_phi[i] = v;
+            }
+            shaping.chunk_reset(
+                &self.intrinsic,
+                &self.next_inv,
+                &buf[term..term + n],
+                &buf[trunc..trunc + n],
+                &self.reset_phi,
+                &mut self.phi,
+                &mut self.inv,
+                &mut self.paid,
+                &mut self.bonus,
+            );
+        } else {
+            shaping.chunk(
+                &self.intrinsic,
+                &self.next_inv,
+                &buf[term..term + n],
+                &buf[trunc..trunc + n],
+                &mut self.phi,
+                &mut self.inv,
+                &mut self.paid,
+                &mut self.bonus,
+            );
+        }
         let mut acc = carry;
         for t in 0..t_len {
             for (e, a) in acc.iter_mut().enumerate() {
@@ -719,4 +800,37 @@ impl<'a> Actor<'a> {
         }
         Ok(true)
     }
+}
+
+/// The potentials of the initial states of the episodes begun in a chunk (a family's
+/// layouts, potential forms), into `vals`; asked after the chunk's own lookups.
+fn look_up_resets(
+    cl: &mut Client,
+    ask: Ask,
+    resets: &[(usize, State, u64)],
+    vals: &mut Vec<f32>,
+) -> Result<(), fulcrum_empowerment::service::ClientError> {
+    vals.clear();
+    vals.resize(resets.len(), 0.0);
+    if resets.is_empty() {
+        return Ok(());
+    }
+    let states: Vec<State> = resets.iter().map(|r| r.1).collect();
+    let layouts: Vec<u64> = resets.iter().map(|r| r.2).collect();
+    let (mut sent, mut got) = (0, 0);
+    while got < states.len() {
+        pump(
+            cl,
+            ask,
+            Asked {
+                states: &states,
+                layouts: Some(&layouts),
+            },
+            &mut sent,
+            &mut got,
+            vals,
+            MAX_BATCH,
+        )?;
+    }
+    Ok(())
 }

@@ -9,4 +9,7 @@ pub enum ActorError {
     /// The empowerment service failed in a way retrying cannot fix.
     #[error("empowerment service: {0}")]
     Service(String),
+    /// A world family's layout could not be made.
+    #[error("world family: {0}")]
+    World(String),
 }

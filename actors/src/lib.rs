@@ -17,6 +17,8 @@ mod resume;
 mod service;
 /// New weights from the learner into the policy.
 mod weights;
+/// The worlds an actor's envs play: one world, or a family's layouts.
+mod worlds;
 
 pub use actor::{chunk_seed, run_actor, ActorId};
 pub use error::ActorError;

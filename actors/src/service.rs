@@ -20,12 +20,19 @@ pub const SERVICE_START_LIMIT: Duration = Duration::from_secs(600);
 /// restarting.
 pub const SERVICE_WAIT: Duration = Duration::from_secs(600 + 30);
 
+/// The states an actor asks about, and on a world family the layout of each.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Asked<'a> {
+    pub(crate) states: &'a [State],
+    pub(crate) layouts: Option<&'a [u64]>,
+}
+
 /// Send pending states and collect answers until either everything collected is
 /// sent or the pipe is full; then collect one answer.
 pub(crate) fn pump(
     cl: &mut Client,
     ask: Ask,
-    states: &[State],
+    Asked { states, layouts }: Asked<'_>,
     sent: &mut usize,
     answered: &mut usize,
     out: &mut [f32],
@@ -33,7 +40,7 @@ pub(crate) fn pump(
 ) -> Result<(), ClientError> {
     while *sent < states.len() && cl.in_flight() < MAX_IN_FLIGHT {
         let end = (*sent + sub_batch).min(states.len());
-        cl.submit(ask, &states[*sent..end])?;
+        cl.submit_on(ask, &states[*sent..end], layouts.map(|l| &l[*sent..end]))?;
         *sent = end;
     }
     if cl.in_flight() > 0 && (cl.in_flight() >= MAX_IN_FLIGHT || *sent == states.len()) {

@@ -137,7 +137,7 @@ impl Guard {
             return Err("of another run or world".into());
         }
         let body = &bytes[ChunkHeader::WIRE_BYTES..];
-        check_chunk(&self.world, &self.layout, self.action_mask, &h, body)
+        check_chunk(&self.world, None, &self.layout, self.action_mask, &h, body)
             .map_err(|e| e.to_string())?;
         Ok(h)
     }

@@ -28,7 +28,7 @@
 use crate::traj::{ChunkHeader, ChunkLayout, Section, ENV_BYTES};
 use crate::valid::{check_record, InvalidRecord};
 use fulcrum_world::mask::action_mask as action_mask_of;
-use fulcrum_world::World;
+use fulcrum_world::{LayoutPool, Layouts, World};
 
 /// The lowest log-probability accepted for a taken action. An actor samples an action
 /// with probability below `e^-50` (about 2e-22) essentially never; below it the ratio
@@ -74,9 +74,12 @@ fn f32_at(b: &[u8], i: usize) -> f32 {
 }
 
 /// Check a chunk of `world` copied out of shared memory, for a run with action masking
-/// on or off (see the module docs). Never panics, whatever the header and bytes.
+/// on or off (see the module docs). On a world family (`family`: its layouts and those
+/// the run trains on) each record is checked against its own layout, which must be one
+/// the run trains on. Never panics, whatever the header and bytes.
 pub fn check_chunk(
     world: &World,
+    family: Option<(&mut LayoutPool, Layouts)>,
     layout: &ChunkLayout,
     action_mask: bool,
     h: &ChunkHeader,
@@ -116,11 +119,35 @@ pub fn check_chunk(
         }
     }
     check_dones(layout, h, payload)?;
+    let mut family = family;
     for (e, rec) in payload[layout.range(Section::EnvState)]
         .chunks_exact(ENV_BYTES)
         .enumerate()
     {
-        check_record(world, rec).map_err(|source| BadChunk::Record { e, source })?;
+        let bad = |source| BadChunk::Record { e, source };
+        match family.as_mut() {
+            None => {
+                let r = check_record(world, rec).map_err(bad)?;
+                if r.layout != 0 {
+                    return Err(bad(InvalidRecord::Field(format!(
+                        "it names layout {}, and the run is on one world",
+                        r.layout
+                    ))));
+                }
+            }
+            Some((pool, trains_on)) => {
+                let seed = crate::traj::EnvRecord::from_bytes(rec).map_or(0, |r| r.layout);
+                if !trains_on.range().contains(&seed) {
+                    return Err(bad(InvalidRecord::Field(format!(
+                        "its layout {seed} is not one the run trains on (--layouts {trains_on})"
+                    ))));
+                }
+                let lw = pool
+                    .get(seed)
+                    .map_err(|why| bad(InvalidRecord::Field(format!("layout {seed}: {why}"))))?;
+                check_record(&lw, rec).map_err(bad)?;
+            }
+        }
     }
     let max_r = world.max_episode_reward();
     let floats = |s: Section| &payload[layout.range(s)];

@@ -15,6 +15,7 @@ use crate::checkpoint::Extra;
 use crate::intrinsic::Intrinsic;
 use crate::layout::{shape_for, NetShape};
 use crate::ppo_config::PpoConfig;
+use fulcrum_world::layouts::Layouts;
 use fulcrum_world::view::View;
 use fulcrum_world::world::World;
 
@@ -107,6 +108,11 @@ pub struct RunConfig {
     /// The intrinsic return's discount (two value heads only).
     #[serde(default = "default_gamma_int")]
     pub gamma_int: f32,
+    /// A run on a world family: the layouts it trains on (`16`: the seeds 0..16; `all`: a
+    /// fresh layout every episode; [`fulcrum_world::layouts`]). Absent for a run on one
+    /// world (and in every configuration written before families).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub layouts: Option<Layouts>,
     /// PPO hyperparameters (the `[ppo]` table).
     pub ppo: PpoConfig,
 }
@@ -549,6 +555,7 @@ mod tests {
             view: View::Full,
             intrinsic_value_head: false,
             gamma_int: 0.99,
+            layouts: None,
             ppo: PpoConfig::default(),
         }
     }

@@ -232,13 +232,46 @@ impl Shaping {
         paid: &mut [bool],
         out: &mut [f32],
     ) {
+        let (flags, state) = ((terminated, truncated), (phi, inv, paid));
+        self.chunk_by(next, next_inventory, flags, state, out, |_| self.phi_reset);
+    }
+
+    /// [`Shaping::chunk`] where each world may reset to a state of its own (a family's
+    /// layouts): `reset_phi[i]` is the potential of the state world e starts its next
+    /// episode in when transition i ends one (read only there); `phi_reset` is unused.
+    #[allow(clippy::too_many_arguments)]
+    pub fn chunk_reset(
+        &self,
+        next: &[f32],
+        next_inventory: &[u16],
+        terminated: &[u8],
+        truncated: &[u8],
+        reset_phi: &[f32],
+        phi: &mut [f32],
+        inv: &mut [u16],
+        paid: &mut [bool],
+        out: &mut [f32],
+    ) {
+        let (flags, state) = ((terminated, truncated), (phi, inv, paid));
+        self.chunk_by(next, next_inventory, flags, state, out, |i| reset_phi[i]);
+    }
+
+    fn chunk_by(
+        &self,
+        next: &[f32],
+        next_inventory: &[u16],
+        (terminated, truncated): (&[u8], &[u8]),
+        (phi, inv, paid): (&mut [f32], &mut [u16], &mut [bool]),
+        out: &mut [f32],
+        phi_reset: impl Fn(usize) -> f32,
+    ) {
         let m = phi.len();
         // Time-major, i = t * m + e: `e` counts round the worlds (no division per item).
         let mut e = 0;
         for (i, b) in out.iter_mut().enumerate() {
             let ended = terminated[i] == 1 || truncated[i] == 1;
             *b = bonus(self.form, self.gamma, phi[e], next[i], terminated[i] == 1);
-            phi[e] = if ended { self.phi_reset } else { next[i] };
+            phi[e] = if ended { phi_reset(i) } else { next[i] };
             if self.form == Intrinsic::FirstVisit {
                 if next_inventory[i] != inv[e] {
                     paid[e] = false;

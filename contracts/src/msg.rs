@@ -7,7 +7,8 @@
 //! ## The empowerment service (request-response)
 //!
 //! `fulcrum/<namespace>/empowerment`: a client sends an [`EmpRequest`] (a batch of up to
-//! [`MAX_BATCH`] packed states, `State::to_bytes`) and receives one [`EmpResponse`]
+//! [`MAX_BATCH`] packed states, `State::to_bytes`, and for a family's service the layout
+//! seed of each) and receives one [`EmpResponse`]
 //! (one `f32` and one status byte per state). Wake-ups travel on two event services:
 //! clients notify `.../server-wake` after sending; the server notifies the client's own
 //! listener on `.../client-wake`, whose id the client puts in the request's user header.
@@ -91,7 +92,7 @@ pub const AGENT_BIT: u32 = 1 << 31;
 /// `tool` value meaning the full action set.
 pub const TOOL_ALL: i32 = -1;
 
-/// A request to the empowerment service. 38,936 bytes.
+/// A request to the empowerment service. 47,128 bytes.
 #[derive(Debug, Clone, Copy, ZeroCopySend)]
 #[type_name("fulcrum::EmpRequest")]
 #[repr(C)]
@@ -112,6 +113,9 @@ pub struct EmpRequest {
     pub seq: u32,
     /// Packed states (`State::to_bytes`).
     pub states: [[u8; STATE_BYTES]; MAX_BATCH],
+    /// The layout seed of each state, where the service serves a world family (a state
+    /// is a state of one layout); ignored by the service of one world.
+    pub layouts: [u64; MAX_BATCH],
 }
 
 /// The world and configuration a service serves (DESCRIBE).
@@ -198,6 +202,7 @@ impl EmpRequest {
             objects: 0,
             seq: 0,
             states: [[0; STATE_BYTES]; MAX_BATCH],
+            layouts: [0; MAX_BATCH],
         })
     }
 }

@@ -87,7 +87,10 @@ pub const WEIGHTS_LOANED: usize = 1;
 /// Chunks an actor's publisher loans at a time.
 pub const CHUNKS_LOANED: usize = 2;
 /// Bytes of one world's episode record in `env_state`.
-pub const ENV_BYTES: usize = 56;
+pub const ENV_BYTES: usize = 64;
+/// Bytes of a record written before families (no layout seed): a checkpoint of that
+/// time still resumes.
+pub const OLD_ENV_BYTES: usize = 56;
 
 /// Metadata of one trajectory chunk.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
@@ -464,6 +467,8 @@ pub struct EnvRecord {
     pub picked: bool,
     /// Whether the first-visit bonus has paid for the current inventory in this episode.
     pub paid: bool,
+    /// The layout seed of the episode (a run on a world family; 0 otherwise).
+    pub layout: u64,
 }
 
 impl EnvRecord {
@@ -475,11 +480,20 @@ impl EnvRecord {
             int_return: 0.0,
             picked: false,
             paid: false,
+            layout: 0,
+        }
+    }
+
+    /// A fresh record of an episode on layout `layout`.
+    pub fn on_layout(episode: Episode, layout: u64) -> EnvRecord {
+        EnvRecord {
+            layout,
+            ..EnvRecord::new(episode)
         }
     }
 
     /// [`ENV_BYTES`] bytes: state (38), t (4), rewarded (2), returns (2 x 4), picked (1),
-    /// paid (1), padding (2).
+    /// paid (1), padding (2), layout seed (8).
     pub fn to_bytes(&self) -> [u8; ENV_BYTES] {
         let mut b = [0u8; ENV_BYTES];
         b[..38].copy_from_slice(&self.episode.state.to_bytes());
@@ -489,12 +503,14 @@ impl EnvRecord {
         b[48..52].copy_from_slice(&self.int_return.to_le_bytes());
         b[52] = self.picked as u8;
         b[53] = self.paid as u8;
+        b[56..64].copy_from_slice(&self.layout.to_le_bytes());
         b
     }
 
-    /// From [`EnvRecord::to_bytes`].
+    /// From [`EnvRecord::to_bytes`], or from the [`OLD_ENV_BYTES`] of a record written
+    /// before families (layout 0).
     pub fn from_bytes(b: &[u8]) -> Option<EnvRecord> {
-        if b.len() != ENV_BYTES {
+        if b.len() != ENV_BYTES && b.len() != OLD_ENV_BYTES {
             return None;
         }
         let sb: [u8; 38] = b[..38].try_into().ok()?;
@@ -509,6 +525,10 @@ impl EnvRecord {
             int_return: f32::from_le_bytes(f(48)),
             picked: b[52] == 1,
             paid: b[53] == 1,
+            layout: match b.get(56..64) {
+                Some(l) => u64::from_le_bytes(l.try_into().ok()?),
+                None => 0,
+            },
         })
     }
 }
@@ -681,15 +701,15 @@ mod tests {
             cells: 7,
             flags: 2,
         };
-        // By hand: 15*7 + 15*2 + 15*3 + 3*56 + 4*15*5 + 4*3, then the intrinsic head's
+        // By hand: 15*7 + 15*2 + 15*3 + 3*64 + 4*15*5 + 4*3, then the intrinsic head's
         // 4*15 + 4*15 + 4*3.
-        assert_eq!(l.bytes(), 105 + 30 + 45 + 168 + 300 + 12 + 60 + 60 + 12);
+        assert_eq!(l.bytes(), 105 + 30 + 45 + 192 + 300 + 12 + 60 + 60 + 12);
         assert_eq!(l.range(Section::Flags), 105..135);
-        assert_eq!(l.range(Section::EnvState), 180..348);
-        assert_eq!(l.range(Section::LastValue), 648..660);
-        assert_eq!(l.range(Section::ValueInt), 660..720);
-        assert_eq!(l.range(Section::TruncValueInt), 720..780);
-        assert_eq!(l.range(Section::LastValueInt), 780..792);
+        assert_eq!(l.range(Section::EnvState), 180..372);
+        assert_eq!(l.range(Section::LastValue), 672..684);
+        assert_eq!(l.range(Section::ValueInt), 684..744);
+        assert_eq!(l.range(Section::TruncValueInt), 744..804);
+        assert_eq!(l.range(Section::LastValueInt), 804..816);
     }
 
     fn valid_chunk(l: &ChunkLayout) -> (ChunkHeader, Vec<u8>) {
@@ -757,7 +777,14 @@ mod tests {
             int_return: 0.123_456_79,
             picked: true,
             paid: true,
+            layout: (1 << 40) + 7,
         };
-        assert_eq!(EnvRecord::from_bytes(&r.to_bytes()), Some(r));
+        let b = r.to_bytes();
+        assert_eq!(EnvRecord::from_bytes(&b), Some(r));
+        // The layout seed is the last 8 bytes, little-endian.
+        assert_eq!(b[56..], [7, 0, 0, 0, 0, 1, 0, 0]);
+        // A record written before families (56 bytes) reads as layout 0.
+        let old = EnvRecord::from_bytes(&b[..OLD_ENV_BYTES]).unwrap();
+        assert_eq!(old, EnvRecord { layout: 0, ..r });
     }
 }

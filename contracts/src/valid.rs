@@ -11,7 +11,7 @@
 //! for the task's objects, a task return between 0 and the most an episode can earn, a
 //! finite intrinsic return, and flag bytes 0 or 1 with zero padding.
 
-use crate::traj::{EnvRecord, ENV_BYTES};
+use crate::traj::{EnvRecord, ENV_BYTES, OLD_ENV_BYTES};
 pub use fulcrum_world::valid::InvalidState;
 use fulcrum_world::World;
 
@@ -32,7 +32,7 @@ pub enum InvalidRecord {
 /// Decode and check one episode record of `world` (see the module docs).
 pub fn check_record(world: &World, b: &[u8]) -> Result<EnvRecord, InvalidRecord> {
     let field = |m: String| Err(InvalidRecord::Field(m));
-    let Some(r) = (b.len() == ENV_BYTES)
+    let Some(r) = (b.len() == ENV_BYTES || b.len() == OLD_ENV_BYTES)
         .then(|| EnvRecord::from_bytes(b))
         .flatten()
     else {
@@ -64,7 +64,7 @@ pub fn check_record(world: &World, b: &[u8]) -> Result<EnvRecord, InvalidRecord>
             r.int_return
         ));
     }
-    if b[52] > 1 || b[53] > 1 || b[54..].iter().any(|&x| x != 0) {
+    if b[52] > 1 || b[53] > 1 || b[54..56].iter().any(|&x| x != 0) {
         return field("its flag bytes are not 0 or 1, or its padding is not 0".to_string());
     }
     Ok(r)

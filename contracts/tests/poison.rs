@@ -176,10 +176,10 @@ proptest! {
     fn a_glyph_is_refused_exactly_when_outside_the_alphabet(at in any::<usize>(), v in any::<u8>()) {
         let w = load_world("exp2").unwrap();
         let (h, l, mut p) = real_chunk(&w);
-        prop_assert_eq!(check_chunk(&w, &l, true, &h, &p), Ok(()));
+        prop_assert_eq!(check_chunk(&w, None, &l, true, &h, &p), Ok(()));
         let r = l.range(Section::Glyphs);
         p[r.start + at % r.len()] = v;
-        let got = check_chunk(&w, &l, true, &h, &p);
+        let got = check_chunk(&w, None, &l, true, &h, &p);
         let alphabet = w.obs_spec().glyphs;
         prop_assert_eq!(got.is_ok(), (v as usize) < alphabet, "{:?}", got);
         if let Err(e) = got {
@@ -230,7 +230,7 @@ fn real_chunk(w: &World) -> (ChunkHeader, ChunkLayout, Vec<u8>) {
 fn each_kind_of_bad_chunk_is_refused_with_its_reason() {
     let w = load_world("exp2").unwrap();
     let (h, l, p) = real_chunk(&w);
-    assert_eq!(check_chunk(&w, &l, true, &h, &p), Ok(()));
+    assert_eq!(check_chunk(&w, None, &l, true, &h, &p), Ok(()));
     let put = |p: &mut Vec<u8>, s: Section, i: usize, x: f32| {
         let r = l.range(s);
         p[r.start + 4 * i..r.start + 4 * i + 4].copy_from_slice(&x.to_le_bytes());
@@ -306,7 +306,7 @@ fn each_kind_of_bad_chunk_is_refused_with_its_reason() {
     for (says, edit) in cases {
         let (mut hh, mut q) = (h, p.clone());
         edit(&mut q, &mut hh);
-        let e: BadChunk = check_chunk(&w, &l, true, &hh, &q).expect_err(says);
+        let e: BadChunk = check_chunk(&w, None, &l, true, &hh, &q).expect_err(says);
         assert!(e.to_string().contains(says), "{says}: {e}");
         assert!(one_line(&e));
     }

@@ -148,6 +148,11 @@ impl<'w> Engine<'w> {
         })
     }
 
+    /// The state space, the engine given up.
+    pub fn into_space(self) -> StateSpace {
+        self.space
+    }
+
     /// Number of normal-mode states.
     pub fn normal_states(&self) -> usize {
         self.space.normal_ids().count()

@@ -50,4 +50,4 @@ pub use capacity::Capacity;
 pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
 pub use error::EngineError;
 pub use limits::Limits;
-pub use space::StateSpace;
+pub use space::{StateIndex, StateSpace};

@@ -188,6 +188,35 @@ impl Index {
     }
 }
 
+/// The ids of a state space's states, without the states or their transitions
+/// ([`StateSpace::into_index`]).
+#[derive(Debug)]
+pub struct StateIndex {
+    index: Index,
+    len: usize,
+}
+
+impl StateIndex {
+    /// Bytes a state costs in the index (a hash map entry of a packed key and an id, with
+    /// the map's spare room).
+    pub const BYTES_PER_STATE: usize = 24;
+
+    /// The id of a state, if it is in the space.
+    pub fn id(&self, s: &State) -> Option<u32> {
+        self.index.get(s)
+    }
+
+    /// States in the space.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// Whether the space is empty (never: it holds the initial state).
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
 /// An enumerated state space with its successor table.
 #[derive(Debug)]
 pub struct StateSpace {
@@ -408,6 +437,16 @@ impl StateSpace {
             .enumerate()
             .filter(|(_, s)| s.mode() == Mode::Normal)
             .map(|(i, _)| i as u32)
+    }
+
+    /// Only the index from states to ids, the rest dropped: what answering by state id
+    /// needs, at about [`StateIndex::BYTES_PER_STATE`] bytes a state.
+    pub fn into_index(self) -> StateIndex {
+        let len = self.states.len();
+        StateIndex {
+            index: self.index,
+            len,
+        }
     }
 
     /// Approximate bytes held.

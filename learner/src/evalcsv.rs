@@ -4,19 +4,20 @@
 //! greedy actions, during training).
 //!
 //! Columns ([`EVAL_COLUMNS`](crate::evalcsv::EVAL_COLUMNS)): the policy's update and
-//! env steps, the world played, the mode (`greedy`, `sample` or `train-greedy`), the
+//! env steps, the world played (a family's name on a family), the layouts played
+//! (`test:K`, `test:A..B`, `train:K`; empty for one world), the mode (`greedy`, `sample` or `train-greedy`), the
 //! sampling seed, the episodes, then success rate, mean return, mean length, tool-use
 //! rate and tool-choice rate (the first tool used fits the task), each followed by its
 //! 95% interval's ends. A resumed run drops the periodic rows after its checkpoint (it
 //! makes them again) and keeps every row `fulcrum eval` wrote. A file written before the
-//! tool-choice columns existed is rewritten with them (empty: `NaN`) before a row is
-//! added.
+//! tool-choice or layouts columns existed is rewritten with them (tool choice `NaN`,
+//! layouts empty) before a row is added.
 
 use std::io::Write as _;
 use std::path::Path;
 
 /// The header of `eval.csv`.
-pub const EVAL_COLUMNS: &str = "update,env_steps,world,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi";
+pub const EVAL_COLUMNS: &str = "update,env_steps,world,layouts,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi";
 
 /// The mode of the rows `train --eval-every` writes: greedy actions, during training.
 pub const PERIODIC: &str = "train-greedy";
@@ -30,6 +31,8 @@ pub struct EvalRow {
     pub env_steps: u64,
     /// The world played.
     pub world: String,
+    /// The layouts of a family played (empty for one world).
+    pub layouts: String,
     /// `greedy`, `sample` or [`PERIODIC`].
     pub mode: String,
     /// The sampling seed.
@@ -54,10 +57,11 @@ impl EvalRow {
     pub fn csv(&self) -> String {
         let f = |v: &[f64; 3]| format!("{},{},{}", v[0], v[1], v[2]);
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             self.update,
             self.env_steps,
             self.world,
+            self.layouts,
             self.mode,
             self.seed,
             self.episodes,
@@ -69,10 +73,12 @@ impl EvalRow {
         )
     }
 
-    /// A row of the file (of today's 21 columns, or the 18 before tool choice, which
-    /// reads as NaN); `None` for the header or a torn line.
+    /// A row of the file (of today's 22 columns, the 21 before layouts, which read as
+    /// empty, or the 18 before tool choice, which reads as NaN); `None` for the header or
+    /// a torn line.
     pub fn parse(line: &str) -> Option<EvalRow> {
-        let v: Vec<&str> = line.split(',').collect();
+        let mut v: Vec<&str> = line.split(',').collect();
+        let layouts = if v.len() == 22 { v.remove(3) } else { "" };
         if v.len() != 18 && v.len() != 21 {
             return None;
         }
@@ -82,6 +88,7 @@ impl EvalRow {
             update: v[0].parse().ok()?,
             env_steps: v[1].parse().ok()?,
             world: v[2].to_string(),
+            layouts: layouts.to_string(),
             mode: v[3].to_string(),
             seed: v[4].parse().ok()?,
             episodes: v[5].parse().ok()?,
@@ -192,6 +199,7 @@ mod tests {
             update,
             env_steps: update * 1024,
             world: "room".into(),
+            layouts: String::new(),
             mode: mode.into(),
             seed: 1,
             episodes: 10,
@@ -245,8 +253,9 @@ mod tests {
 mod upgrade_tests {
     use super::*;
 
-    /// A file of the 18 columns before tool choice: its rows are kept, read with NaN tool
-    /// choice, and the file gets today's header before the next row is added.
+    /// A file of the 18 columns before tool choice and layouts: its rows are kept, read
+    /// with NaN tool choice and no layouts, and the file gets today's header before the
+    /// next row is added.
     #[test]
     fn an_old_file_is_upgraded_before_a_row_is_added() {
         let dir = std::env::temp_dir().join(format!("fulcrum-evalcsv-old-{}", std::process::id()));
@@ -266,8 +275,17 @@ mod upgrade_tests {
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[0], EVAL_COLUMNS);
         assert_eq!(lines.len(), 3);
-        assert!(lines[1].starts_with("3,3072,room,greedy,") && lines[1].ends_with(",NaN,NaN,NaN"));
+        // The old row gains an empty `layouts` column and NaN tool choice.
+        assert!(lines[1].starts_with("3,3072,room,,greedy,") && lines[1].ends_with(",NaN,NaN,NaN"));
+        assert_eq!(lines[1].split(',').count(), 22);
         assert_eq!(EvalRow::parse(lines[2]).unwrap(), new);
+        // A row of the 21 columns before layouts reads with its tool choice, no layouts.
+        let r21 = EvalRow::parse(&format!("{old_row},0.5,0.2,0.8")).unwrap();
+        assert_eq!(
+            (r21.layouts.as_str(), r21.tool_choice),
+            ("", [0.5, 0.2, 0.8])
+        );
+        assert_eq!(r21.mode, "greedy");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -10,7 +10,7 @@
 
 use fulcrum_contracts::chunk_check::{check_chunk, BadChunk};
 use fulcrum_contracts::traj::{ChunkHeader, ChunkLayout};
-use fulcrum_world::World;
+use fulcrum_world::{LayoutPool, Layouts, World};
 
 use crate::batch::Chunk;
 
@@ -18,13 +18,14 @@ use crate::batch::Chunk;
 /// `action_mask`: whether the run masks actions per mode.
 pub(crate) fn take_chunk(
     world: &World,
+    family: Option<(&mut LayoutPool, Layouts)>,
     layout: &ChunkLayout,
     action_mask: bool,
     h: ChunkHeader,
     payload: &[u8],
 ) -> Result<Chunk, BadChunk> {
     let data = payload.to_vec();
-    check_chunk(world, layout, action_mask, &h, &data)?;
+    check_chunk(world, family, layout, action_mask, &h, &data)?;
     Ok(Chunk { h, data })
 }
 
@@ -83,6 +84,7 @@ mod tests {
             view: fulcrum_world::View::Full,
             intrinsic_value_head: two_heads,
             gamma_int: 0.99,
+            layouts: None,
             ppo: PpoConfig {
                 minibatches: 2,
                 epochs: 2,
@@ -291,7 +293,7 @@ mod tests {
             let l = layout(&world);
             for seed in 0..20 {
                 let (h, p) = valid_chunk(&world, seed);
-                let c = take_chunk(&world, &l, true, h, &p)
+                let c = take_chunk(&world, None, &l, true, h, &p)
                     .unwrap_or_else(|e| panic!("{name} seed {seed}: {e}"));
                 update_on(&world, &cfg(&world, true, false, 0.1), &[c]).unwrap();
             }
@@ -319,8 +321,8 @@ mod tests {
                 mutate(&mut p, &l, &world, m);
             }
             let (h2, p2) = valid_chunk(&world, seed ^ 1);
-            if let Ok(c) = take_chunk(&world, &l, mask, h, &p) {
-                let other = take_chunk(&world, &l, mask, h2, &p2).unwrap();
+            if let Ok(c) = take_chunk(&world, None, &l, mask, h, &p) {
+                let other = take_chunk(&world, None, &l, mask, h2, &p2).unwrap();
                 let r = update_on(&world, &cfg(&world, mask, two_heads, beta), &[c, other]);
                 prop_assert!(r.is_ok(), "{:?}: {:?}", muts, r);
             }

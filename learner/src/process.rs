@@ -29,7 +29,7 @@ use candle_core::Device;
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, Section};
-use fulcrum_world::World;
+use fulcrum_world::{LayoutPool, World};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
@@ -171,6 +171,8 @@ struct Learner<'a> {
     /// The beacon-trap detector, and whether it has spoken in this session.
     trap: TrapDetector,
     trap_told: bool,
+    /// A run on a world family: its layouts, which chunks' records are checked against.
+    family: Option<LayoutPool>,
 }
 
 impl<'a> Learner<'a> {
@@ -241,6 +243,18 @@ impl<'a> Learner<'a> {
             LearnerError::Run(format!("cannot trim {}: {e}", paths.eval().display()))
         })?;
         let tb = open_events(paths, &evals, ctr.wall_s);
+        let family = match cfg.layouts {
+            None => None,
+            Some(l) => {
+                let f = fulcrum_world::family::load_family(&cfg.world)
+                    .map_err(|e| LearnerError::Run(e.to_string()))?;
+                let keep = match l {
+                    fulcrum_world::Layouts::First(n) => n.min(1 << 16) as usize,
+                    fulcrum_world::Layouts::All => 256,
+                };
+                Some(LayoutPool::new(f, keep))
+            }
+        };
         let hosts = if cfg.remote {
             Some(HostsLog::open(paths)?)
         } else {
@@ -277,6 +291,7 @@ impl<'a> Learner<'a> {
             evaluate: None,
             trap,
             trap_told: false,
+            family,
         })
     }
 
@@ -410,8 +425,10 @@ impl<'a> Learner<'a> {
                 continue;
             }
             // Copied out of shared memory first, then checked: the copy is what is used.
+            let family = self.family.as_mut().zip(self.cfg.layouts);
             let c = match take_chunk(
                 self.world,
+                family,
                 &self.layout,
                 self.cfg.action_mask,
                 h,

@@ -17,7 +17,7 @@ use crate::error::bad;
 use crate::process::{die_with_parent, install_signal_handlers, signalled, STOP};
 use crate::supervisor::{EXIT_INTERRUPTED, EXIT_PAUSED};
 use fulcrum_contracts::lines::{ChildLine, LearnerProgress};
-use fulcrum_world::load_world;
+use fulcrum_world::family::load_world_or_family;
 
 /// What the supervisor tells a child process (built into a command line by
 /// [`crate::argv::child`]).
@@ -27,7 +27,7 @@ pub use crate::argv::ChildRequest;
 /// changed since the run began (its content hash is the run's).
 pub fn load_run(paths: &RunPaths) -> Result<(RunConfig, World)> {
     let cfg = RunConfig::load(&paths.config())?;
-    let w = load_world(&cfg.world)?;
+    let (w, _) = load_world_or_family(&cfg.world)?;
     if format!("{:016x}", w.content_hash()) != cfg.world_hash {
         return bad(format!(
             "the world '{}' differs from the run's (hash {})",
@@ -77,7 +77,10 @@ pub fn learner_main(a: &ChildRequest) -> Result<()> {
     };
     let hooks = Hooks {
         notice: Box::new(notice),
-        evaluate: (cfg.eval_every > 0).then(|| crate::eval::periodic(&cfg, &w)),
+        evaluate: match cfg.eval_every {
+            0 => None,
+            _ => Some(crate::eval::periodic(&cfg, &w)?),
+        },
     };
     let exit = run_learner_with(&w, &cfg, &paths, &a.namespace, &STOP, progress, hooks)?;
     match exit {

@@ -145,20 +145,28 @@ pub fn summarise(eps: &[Episode]) -> Summary {
     }
 }
 
-/// Plays `episodes` episodes of the policy in `ckpt` on `world` (the run's, or another
-/// of the same shape): greedy, or sampled with a ChaCha generator seeded by `seed`.
-/// Returns the episodes and the checkpoint's update and env steps.
+/// Plays `episodes` episodes of the policy in `ckpt` on `worlds` (the run's world, another
+/// of the same shape, or a family's layouts), episode i on `worlds[i mod len]`: greedy,
+/// or sampled with a ChaCha generator seeded by `seed`. Returns the episodes and the
+/// checkpoint's update and env steps.
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate(
     paths: &RunPaths,
     cfg: &RunConfig,
     run_world: &World,
-    world: &World,
+    worlds: &[World],
     ckpt: &Path,
     episodes: usize,
     greedy: bool,
     seed: u64,
 ) -> Result<(Vec<Episode>, u64, u64)> {
+    let Some(world) = worlds
+        .iter()
+        .find(|w| cfg.shape(w) != cfg.shape(run_world))
+        .or(worlds.first())
+    else {
+        return bad("no world to play on".to_string());
+    };
     if cfg.shape(world) != cfg.shape(run_world) {
         let (a, b) = (world.obs_spec(), run_world.obs_spec());
         let (n, m) = (world.tools.len(), run_world.tools.len());
@@ -174,18 +182,19 @@ pub fn evaluate(
         });
     }
     let (mut policy, counters) = load_policy(ckpt, paths, cfg, run_world)?;
-    let eps = play(&mut policy, cfg.view, world, episodes, greedy, seed);
+    let eps = play(&mut policy, cfg.view, worlds, episodes, greedy, seed);
     let count = |k: &str| counters.get(k).copied().unwrap_or(0);
     Ok((eps, count("update"), count("env_steps")))
 }
 
-/// Plays `episodes` episodes of `policy` on `world` seen through `view`: greedy, or
-/// sampled with a ChaCha generator seeded by `seed`; the same generator draws a
-/// stochastic world's outcomes (greedy play too: the policy is greedy, the world is not).
+/// Plays `episodes` episodes of `policy` seen through `view`, episode i on
+/// `worlds[i mod len]`: greedy, or sampled with a ChaCha generator seeded by `seed`; the
+/// same generator draws a stochastic world's outcomes (greedy play too: the policy is
+/// greedy, the world is not).
 pub fn play(
     policy: &mut Policy,
     view: View,
-    world: &World,
+    worlds: &[World],
     episodes: usize,
     greedy: bool,
     seed: u64,
@@ -193,8 +202,8 @@ pub fn play(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut act, mut lp, mut v) = ([0u8], [0.0f32], [0.0f32]);
     (0..episodes)
-        .map(|_| {
-            episode(view, world, &mut rng, |g, f, _, rng| {
+        .map(|i| {
+            episode(view, &worlds[i % worlds.len()], &mut rng, |g, f, _, rng| {
                 if greedy {
                     policy.greedy(g, f)
                 } else {
@@ -249,11 +258,22 @@ pub fn episode(
 }
 
 /// The periodic evaluation of `train --eval-every`: the learner's weights played
-/// greedily for the run's `eval_episodes` episodes on its world, as a row of `eval.csv`
-/// (the learner fills in the update and env steps).
-pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Evaluate<'a> {
+/// greedily for the run's `eval_episodes` episodes on its world (on a family, one
+/// episode on each of the held-out layouts `test:eval_episodes`), as a row of
+/// `eval.csv` (the learner fills in the update and env steps).
+pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Result<Evaluate<'a>> {
     let mut policy = Policy::new(cfg.shape(world)).with_action_mask(cfg.action_mask);
-    Box::new(move |flat: &[f32]| {
+    let (worlds, label) = match cfg.layouts {
+        None => (vec![world.clone()], String::new()),
+        Some(train) => {
+            let held = fulcrum_world::EvalLayouts::Test(
+                fulcrum_world::HELD_OUT_START
+                    ..fulcrum_world::HELD_OUT_START + cfg.eval_episodes as u64,
+            );
+            (layout_worlds(&cfg.world, &held, train)?, held.label())
+        }
+    };
+    Ok(Box::new(move |flat: &[f32]| {
         if !policy.set(flat) {
             return Err(format!(
                 "{} weights do not fit the network of {}",
@@ -264,13 +284,35 @@ pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Evaluate<'a> {
         let eps = play(
             &mut policy,
             cfg.view,
-            world,
+            &worlds,
             cfg.eval_episodes,
             true,
             cfg.seed,
         );
-        Ok(summarise(&eps).row(0, 0, &world.name, PERIODIC, cfg.seed))
-    })
+        let mut row = summarise(&eps).row(0, 0, &world.name, PERIODIC, cfg.seed);
+        row.layouts = label.clone();
+        Ok(row)
+    }))
+}
+
+/// The layouts `which` of the family `spec` a run on `train` is evaluated on, made;
+/// refused where held-out layouts fall among the training ones.
+pub fn layout_worlds(
+    spec: &str,
+    which: &fulcrum_world::EvalLayouts,
+    train: fulcrum_world::Layouts,
+) -> Result<Vec<World>> {
+    let seeds = which.seeds(train).map_err(crate::error::BadRequest)?;
+    if seeds.end - seeds.start > 100_000 {
+        return bad(format!(
+            "--layouts {}: at most 100000 layouts an evaluation",
+            which.label()
+        ));
+    }
+    let family = fulcrum_world::family::load_family(spec)?;
+    seeds
+        .map(|s| family.layout(s).map_err(Into::into))
+        .collect()
 }
 
 impl Summary {
@@ -281,6 +323,7 @@ impl Summary {
             update,
             env_steps,
             world: world.to_string(),
+            layouts: String::new(),
             mode: mode.to_string(),
             seed,
             episodes: self.episodes,

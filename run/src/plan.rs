@@ -22,7 +22,8 @@ use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use crate::settings::{Fixed, Resumable};
 use fulcrum_empowerment::request::objects_or_default;
-use fulcrum_world::load_world;
+use fulcrum_world::family::load_world_or_family;
+use fulcrum_world::Layouts;
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]
@@ -169,7 +170,7 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
             cfg.stall_timeout_s = t;
         }
         cfg.check()?;
-        let w = load_world(&cfg.world)?;
+        let (w, _) = load_world_or_family(&cfg.world)?;
         if format!("{:016x}", w.content_hash()) != cfg.world_hash {
             return bad(format!(
                 "{}: the world '{}' has changed since the run started (hash {:016x}, the run has {})",
@@ -214,7 +215,27 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
     request.check()?;
     let (a, r) = (&request.fixed, &request.resumable);
     let spec = request.world.clone().unwrap_or_default();
-    let w = load_world(&spec)?;
+    let (w, family) = load_world_or_family(&spec)?;
+    let layouts = match (&family, a.layouts) {
+        (Some(_), l) => Some(l.unwrap_or(Layouts::All)),
+        (None, None) => None,
+        (None, Some(_)) => {
+            return bad(format!(
+                "--layouts needs a world family, and '{spec}' is one world (families: {})",
+                fulcrum_world::builtin::FAMILIES.join(", ")
+            ))
+        }
+    };
+    if family.is_some() && a.objects.is_some() {
+        return bad(format!(
+            "--objects does not fit a world family: each layout of '{spec}' names its own task object"
+        ));
+    }
+    if family.is_some() && request.remote {
+        return bad(format!(
+            "'{spec}' is a world family, and a run across hosts trains on one world only"
+        ));
+    }
     // A file path is stored absolute so that a resume from elsewhere finds it.
     let world_spec = if fulcrum_world::builtin::source(&spec).is_none() && Path::new(&spec).exists()
     {
@@ -277,6 +298,7 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
         stall_timeout_s: request.stall_timeout.unwrap_or(10.0),
         action_mask: a.action_mask(),
         view: a.view.unwrap_or_default(),
+        layouts,
         intrinsic_value_head: a.intrinsic_value_head,
         gamma_int: a.gamma_int.unwrap_or(0.99),
         ppo: {
@@ -311,20 +333,32 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
             }
         }
         if form == Intrinsic::HorizonPotential && a.beta.is_none() {
-            cfg.beta = form.default_beta(
-                e.beta,
-                max_potential(
-                    &model_world(&w, cfg.empowerment_model),
+            // A family's potential differs from layout to layout: the largest over its
+            // first layouts (the training layouts, at most POTENTIAL_LAYOUTS of them).
+            let worlds = match (&family, layouts) {
+                (Some(f), Some(l)) => (0..l.range().end.min(POTENTIAL_LAYOUTS))
+                    .map(|seed| f.layout(seed))
+                    .collect::<std::result::Result<Vec<_>, _>>()?,
+                _ => vec![w.clone()],
+            };
+            let mut max = 0.0f64;
+            for lw in &worlds {
+                max = max.max(max_potential(
+                    &model_world(lw, cfg.empowerment_model),
                     cfg.tool.as_request(),
                     (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
                     cfg.horizon_unequipped,
                     cfg.horizon_equipped,
-                )?,
-            );
+                )?);
+            }
+            cfg.beta = form.default_beta(e.beta, max);
         }
     }
     Ok((cfg, w))
 }
+
+/// Layouts of a family whose potentials set horizon-potential's default beta.
+const POTENTIAL_LAYOUTS: u64 = 16;
 
 /// The largest potential Phi(s) = sum over h = 1..H of E^h(s) over the world's state
 /// space, for the channel the run's service will serve (the same tool, objects and

@@ -11,7 +11,7 @@ use clap::builder::{PossibleValuesParser, TypedValueParser};
 use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode};
 use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_learner::preset::Preset;
-use fulcrum_world::View;
+use fulcrum_world::{Layouts, View};
 
 use crate::error::BadRequest;
 
@@ -85,6 +85,11 @@ pub struct Fixed {
     /// beyond the map read as rock) [default: full].
     #[arg(long, value_name = "full|crop:R", value_parser = |s: &str| s.parse::<View>())]
     pub view: Option<View>,
+    /// A world family's layouts to train on: N (the layout seeds 0..N, each episode one
+    /// of them) or all (a fresh layout every episode); held-out layouts lie beyond both
+    /// (`eval --layouts test:K`) [default for a family: all].
+    #[arg(long, value_name = "N|all", value_parser = |s: &str| s.parse::<Layouts>())]
+    pub layouts: Option<Layouts>,
     /// Seed of weights, sampling, minibatches and worlds.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -249,6 +254,7 @@ mod tests {
             gamma_int: Some(0.9),
             no_action_mask: true,
             view: Some(View::Crop(2)),
+            layouts: Some(Layouts::All),
             seed: Some(0),
             actors: Some(1),
             envs_per_actor: Some(1),
@@ -263,7 +269,7 @@ mod tests {
             minibatches: Some(1),
             ppo_preset: Some(Preset::CleanRl),
         };
-        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --empowerment-model --intrinsic-value-head --gamma-int --no-action-mask --view --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
+        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --empowerment-model --intrinsic-value-head --gamma-int --no-action-mask --view --layouts --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
         assert_eq!(all.given().join(" "), want);
         let two = Fixed {
             view: Some(View::Full),

@@ -467,9 +467,9 @@ pub struct RecordArgs {
 pub struct EvalArgs {
     /// A run directory (with its checkpoint).
     pub run: PathBuf,
-    /// Episodes to play (1 to 100000).
-    #[arg(long, default_value_t = 100)]
-    pub episodes: usize,
+    /// Episodes to play (1 to 100000) [default: 100; with --layouts, one per layout].
+    #[arg(long)]
+    pub episodes: Option<usize>,
     /// The most probable allowed action at each step (the default).
     #[arg(long, conflicts_with = "sample")]
     pub greedy: bool,
@@ -486,6 +486,13 @@ pub struct EvalArgs {
     /// A checkpoint file [default: RUN/checkpoints/latest.safetensors].
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
+    /// A run on a world family: the layouts to play, episode i on layout i (round them
+    /// when there are more episodes): test:K (K held-out layouts, which no run trains
+    /// on), test:A..B (the seeds A to B-1, refused where they fall among the run's
+    /// training layouts) or train:K (the run's first K training layouts) [default for
+    /// a family run: test:100].
+    #[arg(long, value_name = "test:K|test:A..B|train:K")]
+    pub layouts: Option<String>,
 }
 
 /// `fulcrum experiment`

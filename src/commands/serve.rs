@@ -71,6 +71,9 @@ pub fn run(args: &ServeArgs) -> Result<()> {
             args.namespace
         ));
     }
+    if let Some(f) = serve_family(args)? {
+        return Ok(f);
+    }
     let a = Served::from_args(args)?;
     if !(1..=MAX_SERVE_CLIENTS).contains(&a.max_clients) {
         return bad(format!(
@@ -160,6 +163,88 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         stats.refused
     );
     Ok(())
+}
+
+/// The service of a world family (a run on one, or `serve FAMILY`): a table per layout,
+/// made on first sight, the run's training layouts before it says it is ready.
+/// Training layouts whose tables a family run's service makes before it is ready and
+/// never drops (about 330 MB for `toolbox`, ~28 bytes a state); beyond them tables are
+/// made on first sight and kept within `--cache-mib`.
+const KEEP_LAYOUTS: u64 = 1024;
+
+/// `None` when the world is not a family.
+fn serve_family(args: &ServeArgs) -> Result<Option<()>> {
+    use fulcrum_empowerment::service::{serve_with, FamilyConfig, FamilyTables};
+    use fulcrum_world::family::{is_family, load_family};
+    use fulcrum_world::Layouts;
+    let (family, cfg) = if let Some(dir) = &args.run {
+        let (cfg, _) = load_run(&RunPaths { dir: dir.clone() })?;
+        let Some(layouts) = cfg.layouts else {
+            return Ok(None);
+        };
+        let family = load_family(&cfg.world)?;
+        let fc = FamilyConfig {
+            tool: cfg.tool.as_request().map(str::to_string),
+            horizon_unequipped: cfg.horizon_unequipped,
+            horizon_equipped: cfg.horizon_equipped,
+            horizon_sum: cfg.form().horizon_sum(),
+            cache_bytes: args.cache_mib << 20,
+            keep: match layouts {
+                Layouts::First(n) => n.min(KEEP_LAYOUTS),
+                Layouts::All => 0,
+            },
+        };
+        (family, (fc, cfg.service_clients()))
+    } else {
+        let spec = args.world.as_deref().unwrap_or_default();
+        if !is_family(spec) {
+            return Ok(None);
+        }
+        if args.objects.is_some() {
+            return bad(format!(
+                "--objects does not fit a world family: each layout of '{spec}' names its own task object"
+            ));
+        }
+        let family = load_family(spec)?;
+        let fc = FamilyConfig {
+            tool: args.tool.clone(),
+            horizon_unequipped: args.horizon_unequipped.unwrap_or(family.horizon_unequipped),
+            horizon_equipped: args.horizon_equipped.unwrap_or(family.horizon_equipped),
+            horizon_sum: args.horizon_sum,
+            cache_bytes: args.cache_mib << 20,
+            keep: 0,
+        };
+        (family, (fc, args.max_clients))
+    };
+    let ((fc, clients), name) = (cfg, family.name.clone());
+    let (hu, he, keep) = (fc.horizon_unequipped, fc.horizon_equipped, fc.keep);
+    let mut tables = FamilyTables::new(family, fc).map_err(BadRequest)?;
+    let (_, stats) = serve_with(
+        &mut tables,
+        &args.namespace,
+        Duration::from_micros(100),
+        clients,
+        |d| {
+            let about = format!(
+                "world family {name} (hash {:016x}), {keep} layouts made, the others on first sight, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
+                d.world_hash, args.namespace
+            );
+            let _ = writeln!(std::io::stdout(), "{}", ChildLine::ServiceReady { about });
+            let _ = std::io::stdout().flush();
+        },
+    )?;
+    let f = tables.stats;
+    let _ = writeln!(
+        std::io::stdout(),
+        "fulcrum serve: stopped: {} requests, {} states, {} refused; {} layout tables made ({:.2} ms each on average), {} dropped",
+        stats.requests,
+        stats.states,
+        stats.refused,
+        f.made,
+        f.made_us as f64 / 1e3 / f.made.max(1) as f64,
+        f.dropped
+    );
+    Ok(Some(()))
 }
 
 /// `fulcrum __visit`: count `times` visits of one state, one request each, and print

@@ -64,8 +64,27 @@ fn bad_families_and_layouts_are_one_sentence() {
         &["world", "show", "exp1-tree", "--layout", "3"],
         "--layout names a layout of a world family, and 'exp1-tree' is one world",
     );
+    // A family trains on layouts; a world does not, and what does not fit a family is
+    // refused before anything starts.
     bad_input(
-        &["train", "toolbox", "--steps", "1024"],
+        &["train", "exp1-tree", "--layouts", "4", "--steps", "1024"],
+        "--layouts needs a world family, and 'exp1-tree' is one world (families: toolbox, two-rooms)",
+    );
+    bad_input(
+        &["train", "toolbox", "--layouts", "0", "--steps", "1024"],
+        "a run trains on 1 to 1099511627776 layouts (or all)",
+    );
+    bad_input(
+        &["train", "toolbox", "--layouts", "some", "--steps", "1024"],
+        "not a number of layouts or 'all'",
+    );
+    bad_input(
+        &["train", "toolbox", "--objects", "tree", "--steps", "1024"],
+        "--objects does not fit a world family: each layout of 'toolbox' names its own task object",
+    );
+    // Commands that take one world name the family's layouts instead.
+    bad_input(
+        &["empowerment", "matrix", "toolbox"],
         "toolbox: this is a world family (a layout per seed), not one world",
     );
 }

@@ -134,21 +134,21 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
     let csv = std::fs::read_to_string(dir.join("eval.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
     assert_eq!(lines.len(), 1 + 4 + 5, "{csv}");
-    assert!(lines[0].starts_with("update,env_steps,world,mode,seed,episodes,success"));
+    assert!(lines[0].starts_with("update,env_steps,world,layouts,mode,seed,episodes,success"));
     for (line, (u, steps)) in
         lines[1..5]
             .iter()
             .zip([(30, 30720), (60, 61440), (90, 92160), (100, 102400)])
     {
         assert!(
-            line.starts_with(&format!("{u},{steps},room,train-greedy,2,20,")),
+            line.starts_with(&format!("{u},{steps},room,,train-greedy,2,20,")),
             "{csv}"
         );
     }
     // The last periodic evaluation and `fulcrum eval` of the final checkpoint: the same
     // policy, the same 20 greedy episodes, the same row but for the mode.
     assert!(
-        lines[5].starts_with("100,102400,room,greedy,2,20,"),
+        lines[5].starts_with("100,102400,room,,greedy,2,20,"),
         "{csv}"
     );
     assert_eq!(
@@ -156,7 +156,7 @@ fn a_trained_policy_is_evaluated_greedily_sampled_and_on_another_world() {
         lines[5],
         "{csv}"
     );
-    assert!(lines.iter().all(|l| l.split(',').count() == 21), "{csv}");
+    assert!(lines.iter().all(|l| l.split(',').count() == 22), "{csv}");
     assert!(lines[0]
         .ends_with(",tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi"));
 }

@@ -14,6 +14,7 @@ use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod chaos;
 mod eval;
+mod family;
 mod forms;
 mod hang;
 mod isolation;
@@ -211,7 +212,7 @@ fn resumed_equals_uninterrupted_on(world: &str, tag: &str, extra: &[&str]) {
     assert_eq!(ra, rb);
     // And the final weights are the same bits.
     let dev = candle_core::Device::Cpu;
-    let w = fulcrum_world::load_world(world).unwrap();
+    let (w, _) = fulcrum_world::family::load_world_or_family(world).unwrap();
     let shape = fulcrum_contracts::config::RunConfig::load(&a.join("config.toml"))
         .unwrap()
         .shape(&w);

@@ -7,7 +7,9 @@ use std::time::{Duration, Instant};
 
 use fulcrum_contracts::checkpoint;
 use fulcrum_contracts::config::RunConfig;
-use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames};
+use fulcrum_contracts::traj::{
+    self, ChunkHeader, ChunkLayout, EnvRecord, Section, TrainNames, ENV_BYTES,
+};
 use fulcrum_contracts::valid::check_record;
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_world::World;
@@ -64,7 +66,8 @@ fn plausible_chunk(w: &World, ns: &str, layout: &ChunkLayout) -> (ChunkHeader, V
     }
     let er = layout.range(Section::EnvState).start;
     for e in 0..layout.envs {
-        p[er + e * 56..er + (e + 1) * 56].copy_from_slice(&EnvRecord::new(w.reset()).to_bytes());
+        p[er + e * ENV_BYTES..er + (e + 1) * ENV_BYTES]
+            .copy_from_slice(&EnvRecord::new(w.reset()).to_bytes());
     }
     (h, p)
 }
@@ -113,10 +116,10 @@ fn poisoned_chunks_are_refused_and_counted_while_the_run_goes_on() {
     let mut bad_glyph = clean.clone();
     bad_glyph[layout.range(Section::Glyphs).start + 9] = 200;
     let mut bad_record = clean.clone();
-    let er = layout.range(Section::EnvState).start + 2 * 56;
+    let er = layout.range(Section::EnvState).start + 2 * ENV_BYTES;
     bad_record[er] = 0;
     bad_record[er + 1] = 0;
-    assert!(check_record(&w, &bad_record[er..er + 56]).is_err());
+    assert!(check_record(&w, &bad_record[er..er + ENV_BYTES]).is_err());
     for (seq, payload) in [bad_glyph, bad_record, clean].into_iter().enumerate() {
         let mut s = publisher.loan_slice(layout.bytes()).unwrap();
         s.payload_mut().copy_from_slice(&payload);
@@ -195,7 +198,7 @@ fn assert_stored_records_valid(dir: &std::path::Path, w: &World) {
         .collect();
     assert!(!envs.is_empty());
     for (k, b) in envs {
-        for r in b.chunks(56) {
+        for r in b.chunks(ENV_BYTES) {
             assert!(check_record(w, r).is_ok(), "{k}: {:?}", check_record(w, r));
         }
     }
@@ -221,15 +224,15 @@ fn a_checkpoint_with_invalid_world_records_resumes_with_fresh_episodes() {
     let params = cfg.shape(&w).params();
     let mut ck = checkpoint::read(&path, &params).unwrap();
     let blob = ck.extra.blobs.get_mut("env/0").expect("actor 0's worlds");
-    assert_eq!(blob.len(), 4 * 56);
+    assert_eq!(blob.len(), 4 * ENV_BYTES);
     // World 0: the agent in the rock of the corner; world 1: mode 200 (room has one
     // tool: modes 0..=2); world 2: the tree felled without the axe, a state that
     // passes every local check but is not reachable (only the service knows);
     // world 3 untouched.
     blob[0] = 0;
     blob[1] = 0;
-    blob[56 + 2] = 200;
-    let s2 = 2 * 56;
+    blob[ENV_BYTES + 2] = 200;
+    let s2 = 2 * ENV_BYTES;
     blob[s2..s2 + 38].copy_from_slice(&{
         let mut s = w.initial;
         s.objects[0] = 2;
@@ -237,7 +240,7 @@ fn a_checkpoint_with_invalid_world_records_resumes_with_fresh_episodes() {
     });
     // Only the first two fail the local check.
     let bad: Vec<bool> = blob
-        .chunks(56)
+        .chunks(ENV_BYTES)
         .map(|r| check_record(&w, r).is_err())
         .collect();
     assert_eq!(bad, [true, true, false, false]);

@@ -120,6 +120,17 @@ pub fn load_family(name_or_path: &str) -> Result<Family, WorldError> {
     }
 }
 
+/// What a run on `name_or_path` stands on: for a family, its [`Family::run_world`] and
+/// the family; for a world, the world.
+pub fn load_world_or_family(name_or_path: &str) -> Result<(World, Option<Family>), WorldError> {
+    if is_family(name_or_path) {
+        let f = load_family(name_or_path)?;
+        Ok((f.run_world()?, Some(f)))
+    } else {
+        Ok((crate::parse::load_world(name_or_path)?, None))
+    }
+}
+
 /// The tool kinds whose default rules destroy an object of `kind` from its start
 /// condition (intact, or a closed door).
 pub fn destroyers(kind: ObjectKind) -> Vec<String> {
@@ -379,6 +390,23 @@ impl Family {
     pub fn layout(&self, seed: u64) -> Result<World, WorldError> {
         let text = self.layout_text(seed)?;
         parse_world(&text, &format!("{}-{seed}", self.name))
+    }
+
+    /// The content hash of the family file (FNV-1a of its text, as
+    /// [`World::content_hash`] is of a world's): a run on the family carries it.
+    pub fn content_hash(&self) -> u64 {
+        crate::hash::text_hash(&self.source)
+    }
+
+    /// The world a run on the family stands on where one world is needed (its shape,
+    /// actions, glyph alphabet and episode limit, which every layout shares): layout 0,
+    /// named after the family and carrying the family's text, so its
+    /// [`World::content_hash`] is the family's.
+    pub fn run_world(&self) -> Result<World, WorldError> {
+        let mut w = self.layout(0)?;
+        w.name = self.name.clone();
+        w.source = self.source.clone();
+        Ok(w)
     }
 
     /// One draw of a layout's file from `rng`.

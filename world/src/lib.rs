@@ -26,6 +26,9 @@ pub mod family;
 pub mod generate;
 /// A fast hasher for state-keyed maps.
 pub mod hash;
+/// Which layouts of a family a run trains and is evaluated on; the layouts an actor
+/// keeps.
+pub mod layouts;
 /// Per-mode action masking from the observation's flags.
 pub mod mask;
 /// World files: parsing and validation with file:line:col errors.
@@ -41,6 +44,7 @@ pub mod world;
 
 pub use describe::DescribeError;
 pub use env::{Episode, ObsSpec, Outcome};
+pub use layouts::{EvalLayouts, LayoutPool, Layouts, HELD_OUT_START};
 pub use parse::{load_world, parse_world, WorldError, MAX_HORIZON};
 pub use state::{Mode, State, BOULDER_DESTROYED};
 pub use view::View;

@@ -635,12 +635,7 @@ impl World {
     /// A short stable hash of the world's contents (FNV-1a over the source text), used
     /// by services and clients to check they speak about the same world.
     pub fn content_hash(&self) -> u64 {
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in self.source.bytes() {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        h
+        crate::hash::text_hash(&self.source)
     }
 
     /// Render a state as the map it shows (rows joined by newlines).

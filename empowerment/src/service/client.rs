@@ -80,6 +80,17 @@ impl Client {
         world: &World,
         deadline: Duration,
     ) -> Result<Client, ClientError> {
+        Client::connect_to(namespace, &world.name, world.content_hash(), deadline)
+    }
+
+    /// Connect to the service of `namespace` and check that it serves the world (or world
+    /// family) named `name` whose content hash is `hash`.
+    pub fn connect_to(
+        namespace: &str,
+        name: &str,
+        hash: u64,
+        deadline: Duration,
+    ) -> Result<Client, ClientError> {
         let t0 = Instant::now();
         let names = Names::new(namespace);
         let node = NodeBuilder::new()
@@ -114,7 +125,7 @@ impl Client {
             wake,
             listener,
             listener_id,
-            world_hash: world.content_hash(),
+            world_hash: hash,
             describe: Describe::empty(),
             in_flight: VecDeque::new(),
             seq: 0,
@@ -128,7 +139,7 @@ impl Client {
                 namespace: namespace.to_string(),
                 served: msg::get_name(&c.describe.world),
                 served_hash: c.describe.world_hash,
-                wanted: world.name.clone(),
+                wanted: name.to_string(),
                 wanted_hash: c.world_hash,
             });
         }
@@ -141,7 +152,7 @@ impl Client {
     }
 
     fn fetch_describe(&mut self) -> Result<Describe, ClientError> {
-        self.send(kind::DESCRIBE, &[], 0, 0, 0)?;
+        self.send(kind::DESCRIBE, &[], None, 0, 0, 0)?;
         let (resp, _) = self.receive_one()?;
         Ok(resp.describe)
     }
@@ -150,9 +161,20 @@ impl Client {
     /// At most [`MAX_IN_FLIGHT`] may be outstanding; [`Client::recv`] collects them in
     /// order.
     pub fn submit(&mut self, ask: Ask, states: &[State]) -> Result<(), ClientError> {
+        self.submit_on(ask, states, None)
+    }
+
+    /// [`Client::submit`] to the service of a world family: `layouts[i]` is the layout
+    /// seed of `states[i]` (`None`: a service of one world).
+    pub fn submit_on(
+        &mut self,
+        ask: Ask,
+        states: &[State],
+        layouts: Option<&[u64]>,
+    ) -> Result<(), ClientError> {
         assert!(
-            states.len() <= MAX_BATCH,
-            "a request carries at most {MAX_BATCH} states"
+            states.len() <= MAX_BATCH && layouts.is_none_or(|l| l.len() == states.len()),
+            "a request carries at most {MAX_BATCH} states, with one layout each or none"
         );
         if self.in_flight.len() >= MAX_IN_FLIGHT {
             return Err(ClientError::Ipc(format!(
@@ -160,13 +182,13 @@ impl Client {
             )));
         }
         match ask {
-            Ask::Lookup => self.send(kind::LOOKUP, states, 0, 0, 0),
-            Ask::Visit => self.send(kind::VISIT, states, 0, 0, 0),
+            Ask::Lookup => self.send(kind::LOOKUP, states, layouts, 0, 0, 0),
+            Ask::Visit => self.send(kind::VISIT, states, layouts, 0, 0, 0),
             Ask::Query {
                 tool,
                 objects,
                 horizon,
-            } => self.send(kind::QUERY, states, tool, objects, horizon),
+            } => self.send(kind::QUERY, states, layouts, tool, objects, horizon),
         }
     }
 
@@ -174,6 +196,7 @@ impl Client {
         &mut self,
         k: u32,
         states: &[State],
+        layouts: Option<&[u64]>,
         tool: i32,
         objects: u32,
         horizon: u32,
@@ -181,7 +204,7 @@ impl Client {
         // Packed straight into the loaned sample: no copy on the way.
         let hash = self.world_hash;
         self.send_slots(hash, k, states.len(), tool, objects, horizon, |i| {
-            states[i].to_bytes()
+            (states[i].to_bytes(), layouts.map_or(0, |l| l[i]))
         })
     }
 
@@ -196,7 +219,9 @@ impl Client {
         horizon: u32,
     ) -> Result<(), ClientError> {
         let hash = self.world_hash;
-        self.send_slots(hash, k, states.len(), tool, objects, horizon, |i| states[i])
+        self.send_slots(hash, k, states.len(), tool, objects, horizon, |i| {
+            (states[i], 0)
+        })
     }
 
     /// Send another client's request as it is (its world hash, kind, states), without
@@ -214,7 +239,7 @@ impl Client {
             req.tool,
             req.objects,
             req.horizon,
-            |i| req.states[i],
+            |i| (req.states[i], req.layouts[i]),
         )
     }
 
@@ -233,7 +258,7 @@ impl Client {
         tool: i32,
         objects: u32,
         horizon: u32,
-        slot: impl Fn(usize) -> [u8; msg::STATE_BYTES],
+        slot: impl Fn(usize) -> ([u8; msg::STATE_BYTES], u64),
     ) -> Result<(), ClientError> {
         if n > MAX_BATCH || self.in_flight.len() >= MAX_IN_FLIGHT {
             return Err(ClientError::Ipc(format!(
@@ -261,8 +286,11 @@ impl Client {
             std::ptr::addr_of_mut!((*p).objects).write(objects);
             std::ptr::addr_of_mut!((*p).seq).write(self.seq);
             let slots = std::ptr::addr_of_mut!((*p).states) as *mut [u8; msg::STATE_BYTES];
+            let layouts = std::ptr::addr_of_mut!((*p).layouts) as *mut u64;
             for i in 0..n {
-                slots.add(i).write(slot(i));
+                let (state, layout) = slot(i);
+                slots.add(i).write(state);
+                layouts.add(i).write(layout);
             }
             req.assume_init()
         };

@@ -26,6 +26,8 @@
 //! - `server`: the serving loop ([`serve`], [`serve_with`], the [`Answer`] trait);
 //! - `client`: the [`Client`] and what it asks ([`Ask`]) and gets ([`Batch`]);
 //! - `tables`: what a service answers from ([`Tables`], configured by [`ServeConfig`]);
+//! - `family`: what the service of a world family answers from: a table per layout,
+//!   made on first sight ([`FamilyTables`], configured by [`FamilyConfig`]);
 //! - `codes`: tools and object sets as requests name them ([`object_mask`],
 //!   [`mask_set`]) and the DESCRIBE answer ([`describe()`]);
 //! - `signal`: the stop flag (SIGINT, SIGTERM, [`request_stop`]);
@@ -38,6 +40,7 @@ mod client;
 mod codes;
 mod config;
 mod error;
+mod family;
 mod ports;
 mod server;
 mod signal;
@@ -48,6 +51,7 @@ pub use client::{Ask, Batch, Client};
 pub use codes::{describe, mask_set, object_mask};
 pub use config::ServeConfig;
 pub use error::{ClientError, ServiceError};
+pub use family::{FamilyConfig, FamilyStats, FamilyTables};
 pub use ports::{clean_dead_nodes, quiet_ipc_logs};
 pub use server::{serve, serve_with, ServeExit, ServeStats};
 pub use signal::{request_stop, stop_requested};

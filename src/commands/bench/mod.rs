@@ -24,7 +24,9 @@ use fulcrum_contracts::fsio::write_atomic;
 use engine::{empowerment_big, empowerment_exp2, family_layouts};
 use service::service_figures;
 pub use service::{client_process, pingpong_echo};
-use training::{chunk_transport, end_to_end, robustness, time_to_solve, training_figures};
+use training::{
+    chunk_transport, end_to_end, family_end_to_end, robustness, time_to_solve, training_figures,
+};
 
 /// One measured figure.
 pub(super) struct Figure {
@@ -132,6 +134,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
         training_figures(a.quick, &mut figs)?;
         chunk_transport(a.quick, &mut figs)?;
         end_to_end(a.quick, &mut figs)?;
+        family_end_to_end(a.quick, &mut figs)?;
         time_to_solve(&mut figs)?;
         if !a.quick {
             robustness(&mut figs)?;

@@ -232,6 +232,7 @@ fn floors(
         objects: 0,
         seq: 0,
         states: [[0; fulcrum_contracts::msg::STATE_BYTES]; fulcrum_contracts::msg::MAX_BATCH],
+        layouts: [0; fulcrum_contracts::msg::MAX_BATCH],
     });
     for (i, s) in batch256.iter().enumerate() {
         req.states[i] = s.to_bytes();

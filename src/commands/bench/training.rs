@@ -291,6 +291,55 @@ pub(super) fn end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
     Ok(())
 }
 
+/// End-to-end `fulcrum train toolbox` (horizon-potential, this machine's defaults) with a
+/// fresh layout every episode (`--layouts all`: the service makes each layout's table on
+/// first sight) against the same run on one fixed layout (`--layouts 1`: its table made
+/// before the run starts), the two alternating: median env steps per second of the
+/// updates after the first, and their ratio.
+pub(super) fn family_end_to_end(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+    let dir = std::env::temp_dir().join(format!("fulcrum-bench-family-{}", std::process::id()));
+    let batch = (fulcrum_run::process::cores().saturating_sub(1).max(1) * 8 * 128) as u64;
+    let steps = if quick { 16 } else { 100 } * batch;
+    let pairs = if quick { 1 } else { 3 };
+    let job = |layouts: &str| {
+        let mut run = NewRun::new("toolbox", steps, &dir);
+        run.flags = vec!["--layouts".into(), layouts.into()];
+        TrainJob::New(run)
+    };
+    let (mut fixed, mut fresh) = (Vec::new(), Vec::new());
+    for _ in 0..pairs {
+        fixed.extend(train_sps(&job("1"))?.0);
+        fresh.extend(train_sps(&job("all"))?.0);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let (a, b) = (median(&mut fixed), median(&mut fresh));
+    figs.push(Figure {
+        zero_ok: false,
+        name: "end-to-end training env steps/s, toolbox, one layout".into(),
+        value: a,
+        unit: "steps/s",
+        note: format!(
+            "(train toolbox --layouts 1, horizon-potential, median of {} updates)",
+            fixed.len()
+        ),
+    });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "end-to-end training env steps/s, toolbox, a fresh layout each episode".into(),
+        value: b,
+        unit: "steps/s",
+        note: format!(
+            "(train toolbox --layouts all, the same settings, median of {} updates; {:.2} of one layout's, goal >= 0.70)",
+            fresh.len(),
+            b / a
+        ),
+    });
+    Ok(())
+}
+
 /// Seconds from `fulcrum train exp1-tree` being started to the first update at which the
 /// success rate, pooled over 10 updates as `fulcrum experiment` pools it, reaches 0.9;
 /// and the env steps by then. The run is then stopped (SIGINT, as a user would). `None`
