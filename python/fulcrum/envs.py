@@ -18,6 +18,14 @@ legal in every state (the world turns a useless one into "nothing happens");
 ``info["action_mask"]`` (int8, 1 = can do something) is the per-mode mask that
 ``fulcrum train`` samples with.
 
+On a world family (``"toolbox"``, ``"two-rooms"`` or a file with a ``[family]`` table;
+``docs/world.md``, "World families") each episode plays one layout, drawn when it starts
+from the environment's own generator (seeded by ``reset(seed=...)``): ``layouts=N`` (the
+layout seeds ``0..N``, as ``fulcrum train --layouts N``), ``"all"`` (the default: a fresh
+layout every episode), ``"test:K"`` or ``"test:A..B"`` (held-out layouts, seeds from 2^40
+on, which no training run meets) or ``"train:K"``. The shapes are the family's, the same
+for every layout; ``info["layout"]`` holds each episode's layout seed.
+
 The vector environment writes its observations, rewards and flags into numpy arrays it
 owns, in place: the arrays a step returns are the same objects every step, valid until
 the next step (copy what you keep). Autoreset is gymnasium's next-step mode.
@@ -93,9 +101,10 @@ def _world_seeds(
 class FulcrumVectorEnv(gym.vector.VectorEnv):
     """``num_envs`` episodes of one world, stepped together in Rust.
 
-    ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path;
-    ``view`` is ``"full"`` (the whole map) or ``"crop:R"`` (the ``(2R+1) x (2R+1)``
-    window around the agent), as ``fulcrum train --view``.
+    ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path, or a
+    world family's name or path with ``layouts`` (see the module docs); ``view`` is
+    ``"full"`` (the whole map) or ``"crop:R"`` (the ``(2R+1) x (2R+1)`` window around the
+    agent), as ``fulcrum train --view``.
     """
 
     metadata = {
@@ -111,12 +120,14 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         render_mode: str | None = None,
         tile: int = 16,
         view: str = "full",
+        layouts: int | str | None = None,
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array or None"
             )
-        self._core = _native.VecCore(world, int(num_envs), view)
+        self._core = _native.VecCore(world, int(num_envs), view, layouts)
+        self.layouts = self._core.layouts
         self.world = self._core.world
         self.view = self._core.view
         self.num_envs = int(num_envs)
@@ -134,6 +145,8 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         self._terminated = core.terminated
         self._truncated = core.truncated
         self._info = {"action_mask": core.action_mask}
+        if self.layouts is not None:
+            self._info["layout"] = core.layout
         # Every step returns these same objects (rewritten in place by the core): one
         # tuple made once, so that a step makes no Python object at all.
         self._step_core = core.step
@@ -192,9 +205,11 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
 
 
 class FulcrumEnv(gym.Env):
-    """One episode of a world (``gymnasium.make("fulcrum/exp1-tree-v0")``).
+    """One episode of a world (``gymnasium.make("fulcrum/exp1-tree-v0")``), or of a
+    layout of a world family (``gymnasium.make("fulcrum/toolbox-v0", layouts=16)``).
 
-    Observations are copies; ``info["action_mask"]`` is the per-mode mask; ``view`` as
+    Observations are copies; ``info["action_mask"]`` is the per-mode mask (and, on a
+    family, ``info["layout"]`` the episode's layout seed); ``view`` and ``layouts`` as
     :class:`FulcrumVectorEnv`'s.
     """
 
@@ -206,12 +221,14 @@ class FulcrumEnv(gym.Env):
         render_mode: str | None = None,
         tile: int = 16,
         view: str = "full",
+        layouts: int | str | None = None,
     ):
         if render_mode not in (None, "rgb_array", "ansi"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array, ansi or None"
             )
-        self._core = _native.VecCore(world, 1, view)
+        self._core = _native.VecCore(world, 1, view, layouts)
+        self.layouts = self._core.layouts
         self.world = self._core.world
         self.view = self._core.view
         self.render_mode = render_mode
@@ -223,11 +240,15 @@ class FulcrumEnv(gym.Env):
     def _observe(self):
         c = self._core
         obs = {"glyphs": c.glyphs[0].copy(), "flags": c.flags[0].copy()}
-        return obs, {"action_mask": c.action_mask[0].copy()}
+        info = {"action_mask": c.action_mask[0].copy()}
+        if self.layouts is not None:
+            info["layout"] = int(c.layout[0])
+        return obs, info
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        """The episode back to the start. ``seed`` seeds ``np_random`` and, in a
-        stochastic world, the outcomes (as environment 0 of a vector seeded alike)."""
+        """The episode back to the start (on a family, on a layout drawn anew). ``seed``
+        seeds ``np_random``, the layouts and, in a stochastic world, the outcomes (as
+        environment 0 of a vector seeded alike)."""
         super().reset(seed=seed)
         if seed is not None or not self._seeded:
             self._core.seed(_world_seeds(seed, 1, self.np_random))
@@ -253,7 +274,7 @@ class FulcrumEnv(gym.Env):
         if self.render_mode == "rgb_array":
             return self._core.render(0, self.tile)
         if self.render_mode == "ansi":
-            return "\n".join(self.world.render_text(self._core.states[0].tobytes())) + "\n"
+            return "\n".join(self._core.render_text(0)) + "\n"
         return None
 
     @property
@@ -272,18 +293,21 @@ def make_vec(
     seed: int | None = None,
     render_mode: str | None = None,
     view: str = "full",
+    layouts: int | str | None = None,
 ) -> FulcrumVectorEnv:
-    """A :class:`FulcrumVectorEnv`, reset (with ``seed`` if given)."""
+    """A :class:`FulcrumVectorEnv`, reset (with ``seed`` if given); on a world family,
+    ``layouts`` as the module docs say (``make_vec("toolbox", 8, layouts=16)``)."""
     env = FulcrumVectorEnv(
-        world, num_envs=num_envs, render_mode=render_mode, view=view
+        world, num_envs=num_envs, render_mode=render_mode, view=view, layouts=layouts
     )
     env.reset(seed=seed)
     return env
 
 
 def register_envs() -> None:
-    """Register ``fulcrum/<world>-v0`` for each built-in world (single and vector)."""
-    for name in _native.builtin_worlds():
+    """Register ``fulcrum/<world>-v0`` for each built-in world and world family (single
+    and vector; a family's take ``layouts``, by default ``"all"``)."""
+    for name in [*_native.builtin_worlds(), *_native.builtin_families()]:
         env_id = f"fulcrum/{name}-v0"
         if env_id in gym.registry:
             continue

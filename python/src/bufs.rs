@@ -16,6 +16,7 @@ pub(crate) struct Views<'a> {
     pub(crate) terminated: &'a mut [bool],
     pub(crate) truncated: &'a mut [bool],
     pub(crate) states: &'a mut [u8],
+    pub(crate) layout: &'a mut [u64],
 }
 
 /// The step buffers, bound for one call.
@@ -27,6 +28,7 @@ pub(crate) struct Bufs<'py> {
     pub(crate) terminated: Bound<'py, PyArray1<bool>>,
     pub(crate) truncated: Bound<'py, PyArray1<bool>>,
     pub(crate) states: Bound<'py, PyArray2<u8>>,
+    pub(crate) layout: Bound<'py, PyArray1<u64>>,
 }
 
 /// `got` if it is a slice of `len` elements, else the error that says the array changed.
@@ -69,6 +71,7 @@ impl Bufs<'_> {
                     self.states.as_slice_mut(),
                     n * fulcrum_contracts::msg::STATE_BYTES,
                 )?,
+                layout: checked("layout", self.layout.as_slice_mut(), n)?,
             })
         }
     }

@@ -21,6 +21,7 @@ mod bufs;
 mod client;
 mod emp;
 mod errors;
+mod layouts;
 mod render;
 mod shaper;
 mod venv;

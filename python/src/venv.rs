@@ -23,9 +23,15 @@
 //! generator, seeded by [`VecCore::seed`] (environment e's stream depends on its seed
 //! alone, so one environment seeded s replays environment e of a vector seeded s - e);
 //! a deterministic world draws nothing.
+//!
+//! On a world family (`layouts`, [`crate::layouts`]) each environment plays one layout
+//! per episode, drawn from the same generator when the episode starts (at `reset` and
+//! at each autoreset); `layout` (uint64, (N,)) holds each environment's layout seed. The
+//! shapes are the family's, the same for every layout.
 
 use std::sync::Arc;
 
+use fulcrum_world::family::{is_family, load_family};
 use fulcrum_world::mask::action_mask;
 use fulcrum_world::{Episode, ObsSpec, View, World};
 use numpy::{
@@ -36,7 +42,8 @@ use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::bufs::{Bufs, Views};
-use crate::errors::value_error;
+use crate::errors::{value_error, IntoPy};
+use crate::layouts::FamilyEnvs;
 use crate::shaper::{Shaper, ShaperBufs, ShaperViews};
 use crate::world::PyWorld;
 
@@ -51,7 +58,12 @@ const MAX_SHAPERS: usize = 4;
 #[pyclass(module = "fulcrum._native")]
 pub struct VecCore {
     pyworld: Py<PyWorld>,
+    /// The world (on a family, the family's shape: `Family::run_world`).
     world: Arc<World>,
+    /// On a family: its layouts, and each environment's current one.
+    family: Option<FamilyEnvs>,
+    env_worlds: Vec<Arc<World>>,
+    layout: Py<PyArray1<u64>>,
     view: View,
     spec: ObsSpec,
     eps: Vec<Episode>,
@@ -84,6 +96,7 @@ impl VecCore {
             terminated: self.terminated.bind(py).clone(),
             truncated: self.truncated.bind(py).clone(),
             states: self.states.bind(py).clone(),
+            layout: self.layout.bind(py).clone(),
         }
     }
 
@@ -173,14 +186,17 @@ fn write_state(ep: &Episode, out: &mut [u8]) {
 #[pymethods]
 impl VecCore {
     /// `num_envs` episodes of `world`, each at the initial state, seen through `view`
-    /// (`"full"` or `"crop:R"`).
+    /// (`"full"` or `"crop:R"`); on a world family (a built-in family's name or a file
+    /// with a `[family]` table), a layout per episode drawn from `layouts` (`N`, `"all"`,
+    /// the default, `"test:K"`, `"test:A..B"` or `"train:K"`; [`crate::layouts`]).
     #[new]
-    #[pyo3(signature = (world, num_envs, view = "full"))]
+    #[pyo3(signature = (world, num_envs, view = "full", layouts = None))]
     fn new(
         py: Python<'_>,
         world: &Bound<'_, PyAny>,
         num_envs: usize,
         view: &str,
+        layouts: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         if !(1..=MAX_ENVS).contains(&num_envs) {
             return Err(value_error(format!(
@@ -188,7 +204,40 @@ impl VecCore {
             )));
         }
         let view: View = view.parse().map_err(value_error)?;
-        let pyworld = crate::world::world_arg(world)?;
+        let layouts: Option<String> = match layouts {
+            None => None,
+            Some(l) if l.is_none() => None,
+            Some(l) => Some(match l.extract::<u64>() {
+                Ok(n) => n.to_string(),
+                Err(_) => l.extract::<String>().map_err(|_| {
+                    value_error(
+                        "layouts is a number of layouts, 'all', 'test:K', 'test:A..B' or 'train:K'",
+                    )
+                })?,
+            }),
+        };
+        let name: Option<String> = world.extract().ok();
+        let family = match (name.as_deref().filter(|n| is_family(n)), layouts) {
+            (Some(n), l) => Some(
+                FamilyEnvs::new(load_family(n).py_err()?, l.as_deref().unwrap_or("all"))
+                    .map_err(value_error)?,
+            ),
+            (None, None) => None,
+            (None, Some(l)) => {
+                return Err(value_error(format!(
+                    "layouts={l:?} needs a world family, and {} is one world (families: {})",
+                    name.map_or("this".to_string(), |n| format!("'{n}'")),
+                    fulcrum_world::builtin::FAMILIES.join(", ")
+                )))
+            }
+        };
+        let pyworld = match (&family, &name) {
+            (Some(_), Some(n)) => Py::new(
+                py,
+                PyWorld::from_world(load_family(n).py_err()?.run_world().py_err()?),
+            )?,
+            _ => crate::world::world_arg(world)?,
+        };
         let w = Arc::clone(&pyworld.get().world);
         let spec = view.spec(&w);
         let n = num_envs;
@@ -201,6 +250,9 @@ impl VecCore {
             terminated: PyArray1::zeros(py, [n], false).unbind(),
             truncated: PyArray1::zeros(py, [n], false).unbind(),
             states: PyArray2::zeros(py, [n, fulcrum_contracts::msg::STATE_BYTES], false).unbind(),
+            layout: PyArray1::zeros(py, [n], false).unbind(),
+            env_worlds: vec![Arc::clone(&w); n],
+            family,
             eps: vec![w.reset(); n],
             ended: vec![false; n],
             was_reset: vec![true; n],
@@ -257,10 +309,22 @@ impl VecCore {
         // SAFETY: the arrays are only read by Python between calls (see `views`).
         let mut v = unsafe { bufs.views(n, &self.spec, self.world.num_actions())? };
         for e in (0..n).filter(|&e| which[e]) {
-            self.eps[e] = self.world.reset();
+            if let Some(f) = self.family.as_mut() {
+                let (seed, w) = f.draw(self.rngs[e].next_u64()).map_err(value_error)?;
+                v.layout[e] = seed;
+                self.env_worlds[e] = w;
+            }
+            self.eps[e] = self.env_worlds[e].reset();
             self.ended[e] = false;
             self.was_reset[e] = true;
-            observe_all(&self.world, self.view, &self.spec, &self.eps[e], e, &mut v);
+            observe_all(
+                &self.env_worlds[e],
+                self.view,
+                &self.spec,
+                &self.eps[e],
+                e,
+                &mut v,
+            );
             v.reward[e] = 0.0;
             v.terminated[e] = false;
             v.truncated[e] = false;
@@ -294,22 +358,37 @@ impl VecCore {
                 *out = Some(unsafe { b.views(n)? });
             }
         }
-        let (w, view, spec) = (&*self.world, self.view, &self.spec);
-        let (eps, ended, was_reset, acts, shapers, rngs) = (
+        let (view, spec, na) = (self.view, &self.spec, self.world.num_actions());
+        let (eps, ended, was_reset, acts, shapers, rngs, family, worlds) = (
             &mut self.eps,
             &mut self.ended,
             &mut self.was_reset,
             &self.acts,
             &mut self.shapers,
             &mut self.rngs,
+            &mut self.family,
+            &mut self.env_worlds,
         );
-        py.detach(|| {
-            let (c, f, na) = (spec.cells(), spec.flags, w.num_actions());
+        let failed = py.detach(|| {
+            let (c, f) = (spec.cells(), spec.flags);
             for e in 0..eps.len() {
                 let g = &mut v.glyphs[e * c..(e + 1) * c];
                 let fl = &mut v.flags[e * f..(e + 1) * f];
                 let prev = eps[e].state;
+                // A new layout: the whole observation is drawn afresh.
+                let mut fresh = false;
                 if ended[e] {
+                    if let Some(fam) = family.as_mut() {
+                        match fam.draw(rngs[e].next_u64()) {
+                            Ok((seed, w)) => {
+                                v.layout[e] = seed;
+                                worlds[e] = w;
+                                fresh = true;
+                            }
+                            Err(msg) => return Some(msg),
+                        }
+                    }
+                    let w = &worlds[e];
                     eps[e] = w.reset();
                     ended[e] = false;
                     was_reset[e] = true;
@@ -318,14 +397,18 @@ impl VecCore {
                     v.truncated[e] = false;
                 } else {
                     let r = &mut rngs[e];
-                    let o = w.env_step_drawn(&mut eps[e], acts[e], || r.next_u64());
+                    let o = worlds[e].env_step_drawn(&mut eps[e], acts[e], || r.next_u64());
                     ended[e] = o.terminated || o.truncated;
                     was_reset[e] = false;
                     v.reward[e] = o.reward;
                     v.terminated[e] = o.terminated;
                     v.truncated[e] = o.truncated;
                 }
-                view.update(w, &prev, &eps[e].state, g, fl);
+                if fresh {
+                    view.observe(&worlds[e], &eps[e].state, g, fl);
+                } else {
+                    view.update(&worlds[e], &prev, &eps[e].state, g, fl);
+                }
                 write_mask(fl, &mut v.mask[e * na..(e + 1) * na]);
                 write_state(&eps[e], &mut v.states[e * 38..(e + 1) * 38]);
             }
@@ -334,7 +417,11 @@ impl VecCore {
                     sh.after_step(engine, eps, acts, was_reset, &v, out);
                 }
             }
+            None
         });
+        if let Some(msg) = failed {
+            return Err(value_error(msg));
+        }
         self.steps += self.eps.len() as u64;
         Ok(())
     }
@@ -355,6 +442,13 @@ impl VecCore {
         horizon_equipped: Option<u32>,
         gamma: f64,
     ) -> PyResult<crate::shaper::Outputs> {
+        if let Some(f) = &self.family {
+            return Err(value_error(format!(
+                "an intrinsic reward over a family's layouts (layouts={:?}) is not offered in Python yet: `fulcrum train {}` computes it for every layout",
+                f.label(),
+                self.world.name
+            )));
+        }
         if self.shapers.len() == MAX_SHAPERS {
             return Err(value_error(format!(
                 "this environment has {MAX_SHAPERS} intrinsic rewards attached already: at most {MAX_SHAPERS}"
@@ -437,6 +531,18 @@ impl VecCore {
         self.states.clone_ref(py)
     }
 
+    /// uint64 (N,): each environment's layout seed on a family (0 on one world).
+    #[getter]
+    fn layout(&self, py: Python<'_>) -> Py<PyArray1<u64>> {
+        self.layout.clone_ref(py)
+    }
+
+    /// The layouts episodes are drawn from, as given (`None` on one world).
+    #[getter]
+    fn layouts(&self) -> Option<String> {
+        self.family.as_ref().map(|f| f.label().to_string())
+    }
+
     /// The steps of each episode so far, (N,) uint32.
     #[getter]
     fn episode_steps<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<u32>> {
@@ -475,7 +581,22 @@ impl VecCore {
                 self.eps.len()
             ))
         })?;
-        crate::render::rgb(py, &self.world, &ep.state, tile)
+        crate::render::rgb(py, &self.env_worlds[e], &ep.state, tile)
+    }
+
+    /// Environment `e`'s map as text, one string per row (its own layout's map).
+    fn render_text(&self, e: usize) -> PyResult<Vec<String>> {
+        let ep = self.eps.get(e).ok_or_else(|| {
+            value_error(format!(
+                "environment {e} does not exist (there are {})",
+                self.eps.len()
+            ))
+        })?;
+        Ok(self.env_worlds[e]
+            .render(&ep.state)
+            .lines()
+            .map(str::to_string)
+            .collect())
     }
 
     /// The text description of environment `e`'s state.
@@ -486,7 +607,7 @@ impl VecCore {
                 self.eps.len()
             ))
         })?;
-        Ok(self.world.describe(&ep.state))
+        Ok(self.env_worlds[e].describe(&ep.state))
     }
 
     fn __repr__(&self) -> String {

@@ -4,9 +4,11 @@ line shows for the same family and seed, and a bad family is the command line's 
 import json
 import subprocess
 
+import numpy as np
 import pytest
 
 import fulcrum
+from fulcrum.wrappers import EmpowermentReward
 
 
 def cli_json(fulcrum_bin, *args):
@@ -41,3 +43,74 @@ def test_a_family_is_not_one_world_and_bad_families_are_the_cli_sentence(tmp_pat
     with pytest.raises(ValueError) as e:
         fulcrum.World.layout(str(bad), 0)
     assert str(e.value) == want and ":7:12:" in want
+
+
+HELD_OUT = 2**40
+
+
+def initial_glyphs(family, seed):
+    """Layout ``seed``'s first observation, from the layout made as one world."""
+    env = fulcrum.make_vec(fulcrum.World.layout(family, seed), 1)
+    return env.reset()[0]["glyphs"][0].copy()
+
+
+def test_a_vector_on_a_family_plays_a_layout_per_episode():
+    env = fulcrum.make_vec("toolbox", 4, seed=5, layouts=16)
+    obs, info = env.reset(seed=5)
+    layouts = info["layout"].copy()
+    assert env.layouts == "16"
+    assert layouts.dtype == np.uint64 and all(0 <= s < 16 for s in layouts)
+    # Each environment sees its layout as the layout made on its own would show it.
+    for e, s in enumerate(layouts):
+        assert np.array_equal(obs["glyphs"][e], initial_glyphs("toolbox", int(s)))
+    # The same seed draws the same layouts; another seed others.
+    assert np.array_equal(env.reset(seed=5)[1]["layout"], layouts)
+    draws = {tuple(env.reset(seed=k)[1]["layout"].tolist()) for k in range(6)}
+    assert len(draws) > 1
+
+
+def test_an_autoreset_draws_a_fresh_layout_and_shows_all_of_it():
+    env = fulcrum.make_vec("toolbox", 2, seed=1, layouts="all")
+    obs, info = env.reset(seed=1)
+    first = info["layout"].copy()
+    # Moving north forever never ends the task: the episodes end at max_steps (100).
+    for _ in range(100):
+        obs, _, term, trunc, info = env.step(np.zeros(2, dtype=np.int64))
+    assert trunc.all() and not term.any()
+    obs, _, _, _, info = env.step(np.zeros(2, dtype=np.int64))
+    second = info["layout"].copy()
+    assert all(a != b for a, b in zip(first, second))
+    assert all(s < HELD_OUT for s in second)
+    for e, s in enumerate(second):
+        assert np.array_equal(obs["glyphs"][e], initial_glyphs("toolbox", int(s)))
+
+
+def test_held_out_layouts_and_the_single_environment():
+    env = fulcrum.make_vec("toolbox", 8, seed=0, layouts="test:5")
+    seeds = env.reset(seed=0)[1]["layout"]
+    assert all(HELD_OUT <= s < HELD_OUT + 5 for s in seeds)
+    env = fulcrum.make_vec("two-rooms", 3, seed=0, layouts="train:2")
+    assert set(env.reset(seed=0)[1]["layout"].tolist()) <= {0, 1}
+
+    import gymnasium as gym
+    fulcrum.register_envs()
+    one = gym.make("fulcrum/toolbox-v0", layouts=4, render_mode="ansi")
+    _, info = one.reset(seed=3)
+    s = info["layout"]
+    assert isinstance(s, int) and 0 <= s < 4
+    assert one.reset(seed=3)[1]["layout"] == s
+    # The text picture is the layout's own map.
+    w = fulcrum.World.layout("toolbox", s)
+    assert one.render().splitlines() == w.render_text(w.initial_state)
+
+
+def test_bad_layouts_are_one_sentence():
+    with pytest.raises(ValueError, match="a run trains on 1 to 1099511627776 layouts"):
+        fulcrum.make_vec("toolbox", 2, layouts=0)
+    with pytest.raises(ValueError, match="'0' is not a number of layouts"):
+        fulcrum.make_vec("toolbox", 2, layouts="test:0")
+    with pytest.raises(ValueError, match="needs a world family, and 'exp1-tree' is one world"):
+        fulcrum.make_vec("exp1-tree", 2, layouts=16)
+    env = fulcrum.make_vec("toolbox", 2, layouts=16)
+    with pytest.raises(ValueError, match="not offered in Python yet"):
+        EmpowermentReward(env)
