@@ -418,7 +418,7 @@ impl<'a> Actor<'a> {
             match result {
                 Ok(()) => break,
                 Err(e) => {
-                    tracing::warn!(actor = self.id.index, "empowerment service: {e}");
+                    service_trouble(self.stop, self.id.index, &e);
                     match connect(self.namespace, self.world, self.stop)? {
                         Some(new) => *cl = new,
                         None => return Ok(false),
@@ -535,7 +535,7 @@ impl<'a> Actor<'a> {
                         &mut self.intrinsic,
                         self.sub_batch,
                     ) {
-                        tracing::warn!(actor = self.id.index, "empowerment service: {e}");
+                        service_trouble(self.stop, self.id.index, &e);
                         self.lookups.failed = true;
                     }
                 }
@@ -687,7 +687,7 @@ impl<'a> Actor<'a> {
                         &mut self.intrinsic,
                         self.sub_batch,
                     ) {
-                        tracing::warn!(actor = self.id.index, "empowerment service: {e}");
+                        service_trouble(self.stop, self.id.index, &e);
                         failed = true;
                         break;
                     }
@@ -695,7 +695,7 @@ impl<'a> Actor<'a> {
                 if !failed {
                     match look_up_resets(cl, self.ask, &self.resets, &mut self.reset_vals) {
                         Ok(()) => break,
-                        Err(e) => tracing::warn!(actor = self.id.index, "empowerment service: {e}"),
+                        Err(e) => service_trouble(self.stop, self.id.index, &e),
                     }
                 }
             }
@@ -833,4 +833,15 @@ fn look_up_resets(
         )?;
     }
     Ok(())
+}
+
+/// A lookup that failed: a warning, unless the actor is stopping (the end of a run
+/// stops the actors and the service together, and a request in flight then finds the
+/// service gone).
+fn service_trouble(stop: &AtomicBool, actor: u32, e: &dyn std::fmt::Display) {
+    if stop.load(Ordering::Relaxed) {
+        tracing::debug!(actor, "empowerment service while stopping: {e}");
+    } else {
+        tracing::warn!(actor, "empowerment service: {e}");
+    }
 }
