@@ -8,7 +8,9 @@ package gives it the shapes Python researchers use:
   actions, states as text or as 38 packed bytes);
 - :func:`make_vec` / :class:`FulcrumVectorEnv`: a ``gymnasium.vector.VectorEnv`` whose
   steps run in Rust with the GIL released, writing numpy arrays in place;
-  :class:`FulcrumEnv` and the registered ids ``fulcrum/<world>-v0`` for single envs;
+  :class:`FulcrumEnv` and the registered ids ``fulcrum/<world>-v0`` for single envs; on
+  a world family a layout per episode (``make_vec("toolbox", 8, layouts=16)``: the
+  layouts 0..15; ``"all"``; held-out ``"test:K"``);
 - :mod:`fulcrum.empowerment`: the matrix, landscapes, traces and values, as the CLI's
   ``fulcrum empowerment`` computes them;
 - :class:`fulcrum.wrappers.EmpowermentReward`: R + beta * E (the paper's equation (1))

@@ -1,6 +1,6 @@
 //! What answers a service's requests, whoever it is.
 
-use fulcrum_contracts::msg::{Describe, EmpRequest, EmpResponse};
+use fulcrum_contracts::msg::{kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH};
 
 /// What answers a service's requests: its own [`Tables`](super::Tables), or a bridge that asks the
 /// service of another host (feature `multihost`).
@@ -9,4 +9,21 @@ pub trait Answer {
     fn describe(&self) -> &Describe;
     /// Answer one request into `out` (all-zero on entry). Never panics on input.
     fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse);
+}
+
+/// What every answer starts with: the request's sequence number and `describe` copied
+/// into `out`; false (with `out.status` set) for a request of another world (DESCRIBE
+/// excepted) or with more than [`MAX_BATCH`] states.
+pub(super) fn admit(describe: &Describe, req: &EmpRequest, out: &mut EmpResponse) -> bool {
+    out.seq = req.seq;
+    out.describe = *describe;
+    if req.kind != kind::DESCRIBE && req.world_hash != describe.world_hash {
+        out.status = status::WRONG_WORLD;
+        return false;
+    }
+    if req.count as usize > MAX_BATCH {
+        out.status = status::BAD_COUNT;
+        return false;
+    }
+    true
 }

@@ -20,9 +20,7 @@
 use std::collections::VecDeque;
 use std::time::Instant;
 
-use fulcrum_contracts::msg::{
-    self, item, kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH,
-};
+use fulcrum_contracts::msg::{self, item, kind, status, Describe, EmpRequest, EmpResponse};
 use fulcrum_world::family::Family;
 use fulcrum_world::hash::FastMap;
 use fulcrum_world::State;
@@ -230,14 +228,7 @@ impl Answer for FamilyTables {
     }
 
     fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse) {
-        out.seq = req.seq;
-        out.describe = self.describe;
-        if req.kind != kind::DESCRIBE && req.world_hash != self.describe.world_hash {
-            out.status = status::WRONG_WORLD;
-            return;
-        }
-        if req.count as usize > MAX_BATCH {
-            out.status = status::BAD_COUNT;
+        if !super::answer::admit(&self.describe, req, out) {
             return;
         }
         match req.kind {

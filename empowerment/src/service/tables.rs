@@ -4,7 +4,7 @@
 use std::collections::VecDeque;
 
 use fulcrum_contracts::msg::TOOL_ALL;
-use fulcrum_contracts::msg::{item, kind, status, Describe, EmpRequest, EmpResponse, MAX_BATCH};
+use fulcrum_contracts::msg::{item, kind, status, Describe, EmpRequest, EmpResponse};
 use fulcrum_world::{ObjectSet, State, MAX_HORIZON};
 
 use super::answer::Answer;
@@ -65,14 +65,7 @@ impl<'w> Tables<'w> {
 
     /// Answer one request into `out` (all-zero on entry).
     pub fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse) {
-        out.seq = req.seq;
-        out.describe = self.describe;
-        if req.kind != kind::DESCRIBE && req.world_hash != self.describe.world_hash {
-            out.status = status::WRONG_WORLD;
-            return;
-        }
-        if req.count as usize > MAX_BATCH {
-            out.status = status::BAD_COUNT;
+        if !super::answer::admit(&self.describe, req, out) {
             return;
         }
         match req.kind {
