@@ -24,7 +24,7 @@ for n in 16 256; do
   cp "$OUT/$n/summary.json" "docs/results/layouts-$n-summary.json"
 done
 {
-  echo "layouts_trained,arm,seed,$(head -1 "$(ls "$OUT"/16/runs/*/seed-*/eval.csv | head -1)")"
+  echo "layouts_trained,arm,train_seed,$(head -1 "$(ls "$OUT"/16/runs/*/seed-*/eval.csv | head -1)")"
   for n in 16 256; do
     for run in "$OUT/$n"/runs/*/seed-*; do
       arm=$(basename "$(dirname "$run")")

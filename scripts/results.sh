@@ -134,6 +134,13 @@ if [[ "$mode" != pictures || -d experiments/trap-check ]]; then
   python3 scripts/trap_check_table.py --from-experiments > "$out/trap-check-table.md"
 fi
 
+# Layouts never seen: three arms trained on 16 and on 256 layouts of toolbox, 10 seeds,
+# every run's final policy on 500 held-out layouts and on its training layouts.
+if [[ "$mode" != pictures ]]; then
+  FULCRUM=$f scripts/layouts_experiment.sh
+  python3 scripts/layouts_tables.py > "$out/layouts-tables.md"
+fi
+
 # Noisy worlds: the paper's worlds with slip 0.1 and every tool rule at p = 0.8; the
 # baseline, the additive bonus, train's default (the noisy channel's capacities) and the
 # same computed as if the world were deterministic; 10 seeds, the masked budgets.

@@ -28,6 +28,7 @@ def run_script(name: str) -> str:
         ("misses_table.py", "misses-table.md"),
         ("robust_tables.py", "robust-tables.md"),
         ("trap_check_table.py", "trap-check-table.md"),
+        ("layouts_tables.py", "layouts-tables.md"),
     ],
 )
 def test_a_results_table_recomputes_from_committed_data(script, table):
