@@ -33,7 +33,9 @@
 //! - [`limits`]: memory limits, checked before a computation starts;
 //! - [`request`]: reading what a request names (object sets, tools, inventories);
 //! - [`error`]: the engine's errors;
-//! - [`service`]: the empowerment service and its client (iceoryx2 request-response).
+//! - [`service`]: the empowerment service and its client (iceoryx2 request-response);
+//!   for a world family, a table per layout made the first time it is asked about
+//!   ([`service::FamilyTables`]).
 
 pub mod capacity;
 pub mod engine;
