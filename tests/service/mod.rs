@@ -617,3 +617,106 @@ fn serve_run_reads_everything_from_the_runs_config() {
         .unwrap();
     assert_eq!(refused.status.code(), Some(2));
 }
+
+/// `fulcrum serve FAMILY`: lookups name each state's layout, a training layout and a
+/// held-out one in one request, and the answers are the values of the layout made as one
+/// world (the engine on the layout's own states: Phi with --horizon-sum); a state is read
+/// in the layout its request names; QUERY is refused.
+#[test]
+fn a_family_service_answers_each_state_from_its_own_layout() {
+    use fulcrum_world::family::load_family;
+    let ns = namespace("family");
+    let serve = Serve::start("toolbox", &ns, &["--horizon-sum"]);
+    assert!(
+        serve.ready.contains("world family toolbox"),
+        "{}",
+        serve.ready
+    );
+    let family = load_family("toolbox").unwrap();
+    let mut c = Client::connect_to(
+        &ns,
+        "toolbox",
+        family.content_hash(),
+        Duration::from_secs(10),
+    )
+    .unwrap();
+    let seeds = [3u64, fulcrum_world::HELD_OUT_START + 11];
+    let (mut states, mut layouts, mut want) = (Vec::new(), Vec::new(), Vec::new());
+    for &seed in &seeds {
+        let w = family.layout(seed).unwrap();
+        let e = Engine::new(&w, Limits::default()).unwrap();
+        let set = w.empowerment.objects.clone().unwrap();
+        let m = e
+            .matrix(std::slice::from_ref(&set), 8, 3, Method::Dp)
+            .unwrap();
+        let t = ToolSel::Tool(m.selection[0].unwrap());
+        let by_h: Vec<Vec<f64>> = (1..=8)
+            .map(|h| e.values(t, &set, h, Method::Dp).unwrap())
+            .collect();
+        for s in random_states(&e, 100, seed) {
+            let id = e.space.id(&s).unwrap() as usize;
+            states.push(s);
+            layouts.push(seed);
+            want.push(by_h.iter().map(|v| v[id]).sum::<f64>());
+        }
+    }
+    for (chunk, (ls, ws)) in states.chunks(msg::MAX_BATCH).zip(
+        layouts
+            .chunks(msg::MAX_BATCH)
+            .zip(want.chunks(msg::MAX_BATCH)),
+    ) {
+        c.submit_on(Ask::Lookup, chunk, Some(ls)).unwrap();
+        let b = c.recv().unwrap();
+        for k in 0..chunk.len() {
+            assert_eq!(b.status[k], item::OK);
+            assert!(
+                (b.values[k] as f64 - ws[k]).abs() < 1e-4,
+                "{} vs {}",
+                b.values[k],
+                ws[k]
+            );
+        }
+    }
+    // A state is read in the layout its request names: layout 3's start named as the
+    // held-out layout's is answered from that layout (its value there, or NOT_IN_SPACE
+    // where that layout has no such state), and a state of no layout is refused.
+    let start = family.layout(3).unwrap().initial;
+    let other = family.layout(seeds[1]).unwrap();
+    let e = Engine::new(&other, Limits::default()).unwrap();
+    let set = other.empowerment.objects.clone().unwrap();
+    let m = e
+        .matrix(std::slice::from_ref(&set), 8, 3, Method::Dp)
+        .unwrap();
+    let t = ToolSel::Tool(m.selection[0].unwrap());
+    let mut off = start;
+    off.x = 200;
+    c.submit_on(Ask::Lookup, &[start, off], Some(&[seeds[1], 3]))
+        .unwrap();
+    let b = c.recv().unwrap();
+    match e.space.id(&start) {
+        Some(id) => {
+            let phi: f64 = (1..=8)
+                .map(|h| e.values(t, &set, h, Method::Dp).unwrap()[id as usize])
+                .sum();
+            assert_eq!(b.status[0], item::OK);
+            assert!((b.values[0] as f64 - phi).abs() < 1e-4);
+        }
+        None => assert_eq!(b.status[0], item::NOT_IN_SPACE),
+    }
+    assert_eq!(b.status[1], item::NOT_IN_SPACE);
+    // QUERY names tools and objects of one world: refused.
+    c.submit_on(
+        Ask::Query {
+            tool: TOOL_ALL,
+            objects: AGENT_BIT,
+            horizon: 2,
+        },
+        &[start],
+        Some(&[3]),
+    )
+    .unwrap();
+    match c.recv() {
+        Err(ClientError::Refused(code)) => assert_eq!(code, status::BAD_KIND),
+        other => panic!("QUERY on a family: {other:?}"),
+    }
+}
