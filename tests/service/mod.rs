@@ -667,14 +667,10 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
     ) {
         c.submit_on(Ask::Lookup, chunk, Some(ls)).unwrap();
         let b = c.recv().unwrap();
-        for k in 0..chunk.len() {
-            assert_eq!(b.status[k], item::OK);
-            assert!(
-                (b.values[k] as f64 - ws[k]).abs() < 1e-4,
-                "{} vs {}",
-                b.values[k],
-                ws[k]
-            );
+        assert_eq!(b.values.len(), chunk.len());
+        for ((v, st), w) in b.values.iter().zip(&b.status).zip(ws) {
+            assert_eq!(*st, item::OK);
+            assert!((*v as f64 - w).abs() < 1e-4, "{v} vs {w}");
         }
     }
     // A state is read in the layout its request names: layout 3's start named as the
