@@ -203,6 +203,11 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         """The text description of environment ``e``'s state."""
         return self._core.describe(e)
 
+    def action_masks(self) -> np.ndarray:
+        """bool ``(num_envs, |A|)``: the actions that can do something now, the bits of
+        ``info["action_mask"]`` (sb3-contrib's ``action_masks()`` protocol)."""
+        return self._core.action_mask != 0
+
 
 class FulcrumEnv(gym.Env):
     """One episode of a world (``gymnasium.make("fulcrum/exp1-tree-v0")``), or of a
@@ -276,6 +281,11 @@ class FulcrumEnv(gym.Env):
         if self.render_mode == "ansi":
             return "\n".join(self._core.render_text(0)) + "\n"
         return None
+
+    def action_masks(self) -> np.ndarray:
+        """bool ``(|A|,)``: the actions that can do something now, the bits of
+        ``info["action_mask"]`` (sb3-contrib's ``MaskablePPO`` asks for this)."""
+        return self._core.action_mask[0] != 0
 
     @property
     def state(self) -> bytes:

@@ -312,3 +312,37 @@ def test_the_seed_fixes_a_stochastic_worlds_episodes():
             if term or trunc:
                 break
         assert (np.stack(states) == a[: len(states), e]).all()
+
+
+def test_action_masks_are_the_info_mask_as_booleans():
+    """sb3-contrib's protocol: ``action_masks()`` on the single and the vector env gives
+    the bits of ``info["action_mask"]`` as booleans, step after step (the mask changes with
+    the mode: at the tool prompt only the held tools' selects are allowed)."""
+    import gymnasium as gym
+
+    fulcrum.register_envs()
+    one = gym.make("fulcrum/exp1-tree-v0")
+    # Through gymnasium's wrappers, as sb3-contrib finds it.
+    masks = one.get_wrapper_attr("action_masks")
+    vec = fulcrum.make_vec("exp1-tree", 3, seed=2)
+    _, info1 = one.reset(seed=2)
+    _, infov = vec.reset(seed=2)
+    rng = np.random.default_rng(2)
+    seen = set()
+    for _ in range(300):
+        m1 = masks()
+        assert m1.dtype == np.bool_ and m1.shape == (9,)
+        assert np.array_equal(m1, info1["action_mask"] != 0)
+        mv = vec.action_masks()
+        assert mv.dtype == np.bool_ and mv.shape == (3, 9)
+        assert np.array_equal(mv, infov["action_mask"] != 0)
+        seen.add(tuple(m1.tolist()))
+        a = int(rng.choice(np.flatnonzero(m1)))
+        _, _, term, trunc, info1 = one.step(a)
+        if term or trunc:
+            _, info1 = one.reset()
+        acts = np.array([rng.choice(np.flatnonzero(r)) for r in mv], dtype=np.int64)
+        _, _, _, _, infov = vec.step(acts)
+    # Normal mode without a tool: the four moves only; with the axe, apply too.
+    assert (True, True, True, True, False, False, False, False, False) in seen
+    assert len(seen) >= 3
