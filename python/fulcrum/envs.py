@@ -72,6 +72,39 @@ def _spaces(core: _native.VecCore) -> tuple[spaces.Dict, spaces.Discrete]:
     return obs, spaces.Discrete(len(world.actions))
 
 
+class _OneHot:
+    """The flat observation of ``obs="onehot"``, for policies that read a vector of
+    numbers (Stable-Baselines3's ``MlpPolicy``): for each cell of the glyph grid, row by
+    row, a one-hot vector over the ``GLYPH_TOOL0 + n`` glyph ids, then the ``2n + 2``
+    flags as 0 or 1; float32, written in place from the core's arrays after each step."""
+
+    def __init__(self, core: _native.VecCore):
+        g = core.glyphs
+        n_envs, self.cells = g.shape[0], g.shape[1] * g.shape[2]
+        self.ids = GLYPH_TOOL0 + len(core.world.tools)
+        split = self.cells * self.ids
+        self.out = np.zeros((n_envs, split + core.flags.shape[1]), np.float32)
+        # Views: the one-hot block as (env, cell, id), the glyphs as (env, cell).
+        self._grid = self.out[:, :split].reshape(n_envs, self.cells, self.ids)
+        self._flags_out = self.out[:, split:]
+        self._glyphs = g.reshape(n_envs, self.cells)
+        self._flags = core.flags
+        self._eye = np.eye(self.ids, dtype=np.float32)
+
+    def space(self) -> spaces.Box:
+        return spaces.Box(0.0, 1.0, (self.out.shape[1],), np.float32)
+
+    def encode(self) -> np.ndarray:
+        np.take(self._eye, self._glyphs, axis=0, out=self._grid, mode="clip")
+        self._flags_out[...] = self._flags
+        return self.out
+
+
+def _check_obs(obs: str) -> None:
+    if obs not in ("dict", "onehot"):
+        raise ValueError(f"obs '{obs}' is not offered: dict or onehot")
+
+
 def _first_seed(seed: int | list[int] | None) -> int | None:
     if isinstance(seed, (list, tuple)):
         return None if len(seed) == 0 or seed[0] is None else int(seed[0])
@@ -104,7 +137,9 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
     ``world`` is a :class:`fulcrum.World`, a built-in name or a world file's path, or a
     world family's name or path with ``layouts`` (see the module docs); ``view`` is
     ``"full"`` (the whole map) or ``"crop:R"`` (the ``(2R+1) x (2R+1)`` window around the
-    agent), as ``fulcrum train --view``.
+    agent), as ``fulcrum train --view``; ``obs`` is ``"dict"`` (glyph ids and flags, the
+    default) or ``"onehot"`` (one flat float32 vector: each cell's glyph one-hot, then
+    the flags; for policies that read numbers, such as Stable-Baselines3's).
     """
 
     metadata = {
@@ -121,11 +156,13 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         tile: int = 16,
         view: str = "full",
         layouts: int | str | None = None,
+        obs: str = "dict",
     ):
         if render_mode not in (None, "rgb_array"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array or None"
             )
+        _check_obs(obs)
         self._core = _native.VecCore(world, int(num_envs), view, layouts)
         self.layouts = self._core.layouts
         self.world = self._core.world
@@ -135,12 +172,19 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         self.render_mode = render_mode
         self.tile = tile
         self.single_observation_space, self.single_action_space = _spaces(self._core)
+        core = self._core
+        self._onehot = _OneHot(core) if obs == "onehot" else None
+        if self._onehot is not None:
+            self.single_observation_space = self._onehot.space()
         self.observation_space = batch_space(
             self.single_observation_space, self.num_envs
         )
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        core = self._core
-        self._obs = {"glyphs": core.glyphs, "flags": core.flags}
+        self._obs = (
+            {"glyphs": core.glyphs, "flags": core.flags}
+            if self._onehot is None
+            else self._onehot.out
+        )
         self._reward = core.reward
         self._terminated = core.terminated
         self._truncated = core.truncated
@@ -187,10 +231,14 @@ class FulcrumVectorEnv(gym.vector.VectorEnv):
         if options and options.get("reset_mask") is not None:
             mask = np.ascontiguousarray(options["reset_mask"], dtype=np.bool_)
         self._core.reset(mask)
+        if self._onehot is not None:
+            self._onehot.encode()
         return self._obs, self._info
 
     def step(self, actions):
         self._step_core(actions)
+        if self._onehot is not None:
+            self._onehot.encode()
         return self._result
 
     def render(self):
@@ -227,11 +275,13 @@ class FulcrumEnv(gym.Env):
         tile: int = 16,
         view: str = "full",
         layouts: int | str | None = None,
+        obs: str = "dict",
     ):
         if render_mode not in (None, "rgb_array", "ansi"):
             raise ValueError(
                 f"render_mode '{render_mode}' is not offered: rgb_array, ansi or None"
             )
+        _check_obs(obs)
         self._core = _native.VecCore(world, 1, view, layouts)
         self.layouts = self._core.layouts
         self.world = self._core.world
@@ -239,12 +289,18 @@ class FulcrumEnv(gym.Env):
         self.render_mode = render_mode
         self.tile = tile
         self.observation_space, self.action_space = _spaces(self._core)
+        self._onehot = _OneHot(self._core) if obs == "onehot" else None
+        if self._onehot is not None:
+            self.observation_space = self._onehot.space()
         self._ended = False
         self._seeded = False
 
     def _observe(self):
         c = self._core
-        obs = {"glyphs": c.glyphs[0].copy(), "flags": c.flags[0].copy()}
+        if self._onehot is not None:
+            obs = self._onehot.encode()[0].copy()
+        else:
+            obs = {"glyphs": c.glyphs[0].copy(), "flags": c.flags[0].copy()}
         info = {"action_mask": c.action_mask[0].copy()}
         if self.layouts is not None:
             info["layout"] = int(c.layout[0])
@@ -304,11 +360,17 @@ def make_vec(
     render_mode: str | None = None,
     view: str = "full",
     layouts: int | str | None = None,
+    obs: str = "dict",
 ) -> FulcrumVectorEnv:
     """A :class:`FulcrumVectorEnv`, reset (with ``seed`` if given); on a world family,
     ``layouts`` as the module docs say (``make_vec("toolbox", 8, layouts=16)``)."""
     env = FulcrumVectorEnv(
-        world, num_envs=num_envs, render_mode=render_mode, view=view, layouts=layouts
+        world,
+        num_envs=num_envs,
+        render_mode=render_mode,
+        view=view,
+        layouts=layouts,
+        obs=obs,
     )
     env.reset(seed=seed)
     return env

@@ -88,7 +88,9 @@ class EmpowermentReward(gym.vector.VectorWrapper):
                 f"(fulcrum.make_vec), not {type(base).__name__}"
             )
         hu, he = _horizons_arg(horizons)
-        self._direct = env is base
+        # Straight over a fulcrum env whose observation the core writes itself (not the
+        # one-hot form, which its step encodes after the core's).
+        self._direct = env is base and getattr(base, "_onehot", None) is None
         self._base = base
         self._base_info = None
         self._wrapped_info = {}

@@ -346,3 +346,62 @@ def test_action_masks_are_the_info_mask_as_booleans():
     # Normal mode without a tool: the four moves only; with the axe, apply too.
     assert (True, True, True, True, False, False, False, False, False) in seen
     assert len(seen) >= 3
+
+
+def test_onehot_observations_are_the_glyphs_and_flags_spelled_out():
+    """``obs="onehot"``: each cell's glyph id one-hot, then the flags, float32; the same
+    episodes as the Dict form (argmax of each cell's block is its glyph id), step after
+    step, in the vector and the single environment, on a full and a cropped view."""
+    import gymnasium as gym
+
+    for view, shape in [("full", (8, 12)), ("crop:2", (5, 5))]:
+        a = fulcrum.make_vec("exp1-tree", 4, seed=3, view=view)
+        b = fulcrum.make_vec("exp1-tree", 4, seed=3, view=view, obs="onehot")
+        cells, ids = shape[0] * shape[1], fulcrum.envs.GLYPH_TOOL0 + 4
+        assert b.single_observation_space.shape == (cells * ids + 10,)
+        assert b.single_observation_space.dtype == np.float32
+        oa, _ = a.reset(seed=3)
+        ob, _ = b.reset(seed=3)
+        rng = np.random.default_rng(3)
+        for _ in range(150):
+            grid = ob[:, : cells * ids].reshape(4, cells, ids)
+            assert np.array_equal(grid.sum(axis=2), np.ones((4, cells), np.float32))
+            assert np.array_equal(grid.argmax(axis=2), oa["glyphs"].reshape(4, cells))
+            assert np.array_equal(ob[:, cells * ids :], oa["flags"].astype(np.float32))
+            assert b.observation_space.contains(ob)
+            acts = rng.integers(0, 9, size=4)
+            oa, *_ = a.step(acts)
+            ob, *_ = b.step(acts)
+
+    fulcrum.register_envs()
+    one = gym.make("fulcrum/exp1-tree-v0", obs="onehot")
+    from gymnasium.utils.env_checker import check_env
+
+    check_env(one.unwrapped)
+    o, _ = one.reset(seed=0)
+    assert o.shape == one.observation_space.shape and o.dtype == np.float32
+    # The agent's glyph (3) at its start cell (1, 4) of exp1-tree.
+    assert o[(4 * 12 + 1) * (fulcrum.envs.GLYPH_TOOL0 + 4) + 3] == 1.0
+    with pytest.raises(ValueError, match="obs 'pixels' is not offered: dict or onehot"):
+        fulcrum.make_vec("exp1-tree", 2, obs="pixels")
+
+
+def test_the_reward_wrapper_passes_onehot_observations_fresh():
+    """EmpowermentReward over ``obs="onehot"`` returns the observation of the step just
+    taken (the one-hot form is encoded by the env's step, which the wrapper must not skip),
+    and the same rewards as over the Dict form."""
+    from fulcrum.wrappers import EmpowermentReward
+
+    a = EmpowermentReward(fulcrum.make_vec("exp1-tree", 2, seed=1))
+    b = EmpowermentReward(fulcrum.make_vec("exp1-tree", 2, seed=1, obs="onehot"))
+    a.reset(seed=1)
+    b.reset(seed=1)
+    ids = fulcrum.envs.GLYPH_TOOL0 + 4
+    rng = np.random.default_rng(1)
+    for _ in range(60):
+        acts = rng.integers(0, 9, size=2)
+        oa, ra, *_ = a.step(acts)
+        ob, rb, *_ = b.step(acts)
+        grid = ob[:, : 96 * ids].reshape(2, 96, ids).argmax(axis=2)
+        assert np.array_equal(grid, oa["glyphs"].reshape(2, 96))
+        assert np.array_equal(ra, rb)
