@@ -645,19 +645,11 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
     for &seed in &seeds {
         let w = family.layout(seed).unwrap();
         let e = Engine::new(&w, Limits::default()).unwrap();
-        let set = w.empowerment.objects.clone().unwrap();
-        let m = e
-            .matrix(std::slice::from_ref(&set), 8, 3, Method::Dp)
-            .unwrap();
-        let t = ToolSel::Tool(m.selection[0].unwrap());
-        let by_h: Vec<Vec<f64>> = (1..=8)
-            .map(|h| e.values(t, &set, h, Method::Dp).unwrap())
-            .collect();
+        let phi = layout_phi(&w, &e);
         for s in random_states(&e, 100, seed) {
-            let id = e.space.id(&s).unwrap() as usize;
             states.push(s);
             layouts.push(seed);
-            want.push(by_h.iter().map(|v| v[id]).sum::<f64>());
+            want.push(phi[e.space.id(&s).unwrap() as usize]);
         }
     }
     for (chunk, (ls, ws)) in states.chunks(msg::MAX_BATCH).zip(
@@ -679,11 +671,6 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
     let start = family.layout(3).unwrap().initial;
     let other = family.layout(seeds[1]).unwrap();
     let e = Engine::new(&other, Limits::default()).unwrap();
-    let set = other.empowerment.objects.clone().unwrap();
-    let m = e
-        .matrix(std::slice::from_ref(&set), 8, 3, Method::Dp)
-        .unwrap();
-    let t = ToolSel::Tool(m.selection[0].unwrap());
     let mut off = start;
     off.x = 200;
     c.submit_on(Ask::Lookup, &[start, off], Some(&[seeds[1], 3]))
@@ -691,11 +678,8 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
     let b = c.recv().unwrap();
     match e.space.id(&start) {
         Some(id) => {
-            let phi: f64 = (1..=8)
-                .map(|h| e.values(t, &set, h, Method::Dp).unwrap()[id as usize])
-                .sum();
             assert_eq!(b.status[0], item::OK);
-            assert!((b.values[0] as f64 - phi).abs() < 1e-4);
+            assert!((b.values[0] as f64 - layout_phi(&other, &e)[id as usize]).abs() < 1e-4);
         }
         None => assert_eq!(b.status[0], item::NOT_IN_SPACE),
     }
@@ -715,4 +699,20 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
         Err(ClientError::Refused(code)) => assert_eq!(code, status::BAD_KIND),
         other => panic!("QUERY on a family: {other:?}"),
     }
+}
+
+/// Phi = sum over h <= 8 of E^h at every state of a `toolbox` layout made as one world,
+/// with the tool its matrix selects for its task object (h 8 unequipped, 3 equipped).
+fn layout_phi(w: &World, e: &Engine) -> Vec<f64> {
+    let set = w.empowerment.objects.clone().unwrap();
+    let m = e
+        .matrix(std::slice::from_ref(&set), 8, 3, Method::Dp)
+        .unwrap();
+    let t = ToolSel::Tool(m.selection[0].unwrap());
+    let by_h: Vec<Vec<f64>> = (1..=8)
+        .map(|h| e.values(t, &set, h, Method::Dp).unwrap())
+        .collect();
+    (0..e.space.len())
+        .map(|i| by_h.iter().map(|v| v[i]).sum())
+        .collect()
 }
