@@ -31,6 +31,10 @@
 //! - [`capacity`]: channel capacity in bits (closed form of two outputs, Blahut-Arimoto);
 //! - [`enumerate`]: the reference method, every action sequence;
 //! - [`limits`]: memory limits, checked before a computation starts;
+//! - [`dataset`]: datasets of exact E with observations and sampled action sequences,
+//!   for learned estimators; [`npz`] writes and reads them as NumPy files;
+//! - [`score`]: estimates against the exact values (MAE, bias, Spearman, by bin and
+//!   horizon);
 //! - [`request`]: reading what a request names (object sets, tools, inventories);
 //! - [`error`]: the engine's errors;
 //! - [`service`]: the empowerment service and its client (iceoryx2 request-response);
@@ -38,12 +42,15 @@
 //!   ([`service::FamilyTables`]).
 
 pub mod capacity;
+pub mod dataset;
 pub mod engine;
 pub mod enumerate;
 pub mod error;
 pub mod limits;
+pub mod npz;
 pub mod propagate;
 pub mod request;
+pub mod score;
 pub mod service;
 pub mod space;
 pub mod stochastic;

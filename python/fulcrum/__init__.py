@@ -11,7 +11,8 @@ package gives it the shapes Python researchers use:
   :class:`FulcrumEnv` and the registered ids ``fulcrum/<world>-v0`` for single envs; on
   a world family a layout per episode (``make_vec("toolbox", 8, layouts=16)``: the
   layouts 0..15; ``"all"``; held-out ``"test:K"``);
-- :mod:`fulcrum.empowerment`: the matrix, landscapes, traces and values, as the CLI's
+- :mod:`fulcrum.empowerment`: the matrix, landscapes, traces and values, datasets of exact E
+  for learned estimators and their scoring, as the CLI's
   ``fulcrum empowerment`` computes them;
 - :class:`fulcrum.wrappers.EmpowermentReward`: R + beta * E (the paper's equation (1))
   and the project's other intrinsic forms, from the exact table;

@@ -97,3 +97,101 @@ def value(
         horizon=horizon,
         method=method,
     )
+
+
+def dataset(
+    world,
+    tool: str | None = None,
+    objects: str | Sequence[str] | None = None,
+    horizon: int | None = None,
+    states: str = "all",
+    seed: int = 0,
+    view: str = "full",
+    sequences: int = 16,
+    method: str = "dp",
+    out=None,
+) -> dict:
+    """Exact E as ground truth for a learned estimator, one row per state (``states``:
+    ``"all"`` or ``"sample:N"``), as ``fulcrum empowerment dataset`` writes it:
+
+    - ``glyphs`` uint8 (n, H, W) and ``flags`` uint8 (n, F): the observation in ``view``
+      (``"full"`` or ``"crop:R"``), exactly as a policy sees it;
+    - ``state`` uint8 (n, 38) packed, ``state_id`` uint32, ``normal`` bool (mode normal);
+    - ``E`` float64 (n,) bits, ``gap`` (a stochastic world's capacity bound, else 0),
+      ``horizon`` uint32 (the one given, else the world's by whether the tool is held);
+    - ``sequences`` action sequences per row, uniform over the tool's actions:
+      ``seq_row`` uint32 (m,), ``seq_actions`` uint8 (m, h_max) (world action indices,
+      255 past the row's horizon), ``seq_final_state`` uint8 (m, 38), ``seq_proj`` uint32
+      (m,) (proj_D of the final state as a dense id) and ``proj_key`` uint16 (P, k) (what
+      each id is); ``tool_actions`` (the tool's action indices), ``actions`` (names);
+    - ``world``, ``tool``, ``objects``, ``view``, ``seed``.
+
+    The mean of ``E`` over ``normal`` rows of ``states="all"`` is the matrix entry at the
+    same horizon. With ``out`` (a path) the arrays are also written there as ``.npz``.
+    """
+    d = _native.dataset(
+        world,
+        tool=tool,
+        objects=_objects(objects),
+        horizon=horizon,
+        states=states,
+        seed=seed,
+        view=view,
+        sequences=sequences,
+        method=method,
+    )
+    if out is not None:
+        _save_npz(out, d)
+    return d
+
+
+def _save_npz(path, d: dict) -> None:
+    """``numpy.savez`` to a temporary file beside ``path``, then renamed over it."""
+    import os
+    import tempfile
+
+    import numpy as np
+
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".fulcrum-", suffix=".npz")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez(f, **{k: np.asarray(v) for k, v in d.items()})
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        os.unlink(tmp)
+        raise
+
+
+def score(estimates, dataset) -> dict:
+    """Score ``estimates`` (bits) against a dataset's exact ``E``: ``dataset`` is the dict
+    of :func:`dataset`, a loaded ``.npz`` or its path; ``estimates`` one value per row, or
+    a dict ``{row: value}`` to score a subset. Returns ``n``, ``mae``, ``bias``
+    (estimate minus truth, averaged), ``rmse``, ``spearman`` (ties share their mean
+    rank; ``None`` where a side is constant), and the same ``by_bin`` (true E in
+    ``[lo, hi)``, one bit wide) and ``by_horizon``, as ``fulcrum empowerment score``."""
+    import os
+
+    import numpy as np
+
+    if isinstance(dataset, (str, os.PathLike)):
+        with np.load(dataset) as z:
+            truth, horizon = np.array(z["E"]), np.array(z["horizon"])
+    else:
+        truth, horizon = np.asarray(dataset["E"]), np.asarray(dataset["horizon"])
+    truth = truth.astype(np.float64).ravel()
+    horizon = horizon.astype(np.uint32).ravel()
+    if isinstance(estimates, dict):
+        rows = np.array(sorted(estimates), dtype=np.int64)
+        if len(rows) and (rows[0] < 0 or rows[-1] >= len(truth)):
+            raise ValueError(
+                f"estimates name rows outside the dataset's {len(truth)} states"
+            )
+        x = np.array([estimates[r] for r in rows.tolist()], dtype=np.float64)
+        truth, horizon = truth[rows], horizon[rows]
+    else:
+        x = np.asarray(estimates, dtype=np.float64).ravel()
+    return _native.score(x.tolist(), truth.tolist(), horizon.tolist())

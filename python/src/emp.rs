@@ -339,3 +339,108 @@ pub fn value<'py>(
         Ok(PyArray1::from_vec(py, out).into_any())
     }
 }
+
+/// A dataset of exact E for learned estimators (the command line's `empowerment
+/// dataset`, as a dict of numpy arrays with the `.npz` file's names; `world`, `tool`,
+/// `view` are str, `objects` and `actions` lists, `seed` an int).
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (world, tool = None, objects = None, horizon = None, states = "all", seed = 0, view = "full", sequences = 16, method = "dp"))]
+pub fn dataset<'py>(
+    py: Python<'py>,
+    world: &Bound<'py, PyAny>,
+    tool: Option<&str>,
+    objects: Option<&str>,
+    horizon: Option<u32>,
+    states: &str,
+    seed: u64,
+    view: &str,
+    sequences: usize,
+    method: &str,
+) -> PyResult<Bound<'py, PyDict>> {
+    use fulcrum_empowerment::dataset::{build, Rows, Spec};
+    use fulcrum_empowerment::npz::Data;
+    let pw = world_arg(world)?;
+    let pw = pw.get();
+    let w = &*pw.world;
+    let method = method_arg(method)?;
+    let horizon = horizon_arg(horizon)?;
+    let rows: Rows = states
+        .parse()
+        .map_err(|e: String| value_error(format!("states: {e}")))?;
+    let view: fulcrum_world::View = view
+        .parse()
+        .map_err(|e| value_error(format!("view: {e}")))?;
+    let (e, set, t) = channel(py, pw, tool, objects)?;
+    let spec = Spec {
+        tool: t,
+        set,
+        horizon,
+        rows,
+        seed,
+        view,
+        sequences,
+    };
+    let ds = py.detach(|| build(e, &spec, method)).py_err()?;
+    let d = PyDict::new(py);
+    for a in ds.arrays(w, &spec) {
+        let shape = a.shape.clone();
+        let name = a.name.as_str();
+        match a.data {
+            Data::Str(v) if shape.is_empty() => d.set_item(name, &v[0])?,
+            Data::Str(v) => d.set_item(name, v)?,
+            Data::U64(v) if shape.is_empty() => d.set_item(name, v[0])?,
+            Data::U8(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::Bool(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::U16(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::U32(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::U64(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::I64(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::F32(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+            Data::F64(v) => d.set_item(name, PyArray1::from_vec(py, v).reshape(shape)?)?,
+        }
+    }
+    Ok(d)
+}
+
+fn errors_dict<'py>(
+    py: Python<'py>,
+    e: &fulcrum_empowerment::score::Errors,
+) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("n", e.n)?;
+    d.set_item("mae", e.mae)?;
+    d.set_item("bias", e.bias)?;
+    d.set_item("rmse", e.rmse)?;
+    d.set_item("spearman", e.spearman)?;
+    Ok(d)
+}
+
+/// Estimates `x` of true values `y` at horizons `h` (float64, float64, uint32 arrays of
+/// one length), scored as `fulcrum empowerment score --json` scores them.
+#[pyfunction]
+pub fn score<'py>(
+    py: Python<'py>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    h: Vec<u32>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let s = fulcrum_empowerment::score::score(&x, &y, &h).map_err(value_error)?;
+    let d = errors_dict(py, &s.all)?;
+    let bins = PyList::empty(py);
+    for b in &s.by_bin {
+        let e = errors_dict(py, &b.errors)?;
+        e.set_item("lo", b.lo)?;
+        e.set_item("hi", b.lo + 1.0)?;
+        bins.append(e)?;
+    }
+    d.set_item("by_bin", bins)?;
+    let hs = PyList::empty(py);
+    for (hz, b) in &s.by_horizon {
+        let e = errors_dict(py, b)?;
+        e.set_item("horizon", hz)?;
+        hs.append(e)?;
+    }
+    d.set_item("by_horizon", hs)?;
+    Ok(d)
+}

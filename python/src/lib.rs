@@ -37,6 +37,8 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(emp::landscape, m)?)?;
     m.add_function(wrap_pyfunction!(emp::trace, m)?)?;
     m.add_function(wrap_pyfunction!(emp::value, m)?)?;
+    m.add_function(wrap_pyfunction!(emp::dataset, m)?)?;
+    m.add_function(wrap_pyfunction!(emp::score, m)?)?;
     m.add_function(wrap_pyfunction!(world::builtin_worlds, m)?)?;
     m.add_function(wrap_pyfunction!(world::builtin_families, m)?)?;
     errors::register(m)?;

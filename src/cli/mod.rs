@@ -247,6 +247,11 @@ pub enum EmpCmd {
     Trace(TraceArgs),
     /// The value at one state, or at each state of a file.
     Query(QueryArgs),
+    /// A dataset for learned estimators: observations, exact E and sampled action
+    /// sequences with where they end, one row per state (NumPy .npz).
+    Dataset(DatasetArgs),
+    /// Score estimates of E (a CSV) against a dataset's exact values.
+    Score(ScoreArgs),
 }
 
 /// `fulcrum empowerment matrix`
@@ -329,6 +334,45 @@ pub struct QueryArgs {
     /// Seconds to wait for the service to appear.
     #[arg(long, default_value_t = 5.0, requires = "service")]
     pub wait: f64,
+}
+
+/// `fulcrum empowerment dataset`
+#[derive(Debug, Args)]
+pub struct DatasetArgs {
+    /// World, tool, objects, horizon.
+    #[command(flatten)]
+    pub channel: Channel,
+    /// Which states: `all`, or `sample:N` (N distinct states drawn uniformly).
+    #[arg(long, default_value = "all", value_name = "all|sample:N", value_parser = |s: &str| s.parse::<fulcrum_empowerment::dataset::Rows>())]
+    pub states: fulcrum_empowerment::dataset::Rows,
+    /// Seed of the state sample, the action sequences and (in a stochastic world) their
+    /// outcomes.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// The observation's view, as in training.
+    #[arg(long, default_value = "full", value_name = "full|crop:R", value_parser = |s: &str| s.parse::<fulcrum_world::View>())]
+    pub view: fulcrum_world::View,
+    /// Action sequences sampled per state (uniform over the tool's actions, the row's
+    /// horizon long), each stored with the state it ends in.
+    #[arg(long, default_value_t = 16)]
+    pub sequences: usize,
+    /// The .npz file to write (atomically).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// `fulcrum empowerment score`
+#[derive(Debug, Args)]
+pub struct ScoreArgs {
+    /// A dataset written by `fulcrum empowerment dataset` (or `fulcrum.empowerment.dataset`).
+    pub dataset: PathBuf,
+    /// A CSV with a header and a column `estimate` (bits): one line per dataset row in
+    /// order, or with a column `row` naming each line's row (then only those are scored).
+    #[arg(long)]
+    pub estimates: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `fulcrum bench`

@@ -1,4 +1,6 @@
-//! `fulcrum empowerment matrix|landscape|trace|query`.
+//! `fulcrum empowerment matrix|landscape|trace|query|dataset|score`.
+
+mod dataset;
 
 use std::io::IsTerminal;
 use std::time::Instant;
@@ -23,6 +25,8 @@ pub fn run(cmd: EmpCmd) -> Result<()> {
         EmpCmd::Landscape(a) => landscape(&a),
         EmpCmd::Trace(a) => trace(&a),
         EmpCmd::Query(a) => query(&a),
+        EmpCmd::Dataset(a) => dataset::dataset(&a),
+        EmpCmd::Score(a) => dataset::score(&a),
     }
 }
 
