@@ -61,6 +61,11 @@ pub struct RunConfig {
     /// stochastic worlds reads as `exact`, which is what it meant).
     #[serde(default)]
     pub empowerment_model: EmpowermentModel,
+    /// Where the service's LOOKUP table came from when it is someone's estimates of E
+    /// (`train --empowerment-from FILE`: the file as given; the run serves its copy,
+    /// `empowerment-estimates.csv`). Absent: the exact table.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub empowerment_from: Option<String>,
     /// Tool of the channel (`default`, `auto`, `all` or a tool).
     pub tool: ChannelTool,
     /// Objects of interest, comma separated (empty = the world's default).
@@ -541,6 +546,7 @@ mod tests {
             intrinsic: Intrinsic::None,
             horizon_mode: HorizonMode::Switch,
             empowerment_model: EmpowermentModel::Exact,
+            empowerment_from: None,
             tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,

@@ -33,6 +33,7 @@
 //! - [`limits`]: memory limits, checked before a computation starts;
 //! - [`dataset`]: datasets of exact E with observations and sampled action sequences,
 //!   for learned estimators; [`npz`] writes and reads them as NumPy files;
+//! - [`estimates`]: a LOOKUP table from someone's estimates of E (training on them);
 //! - [`score`]: estimates against the exact values (MAE, bias, Spearman, by bin and
 //!   horizon);
 //! - [`request`]: reading what a request names (object sets, tools, inventories);
@@ -46,6 +47,7 @@ pub mod dataset;
 pub mod engine;
 pub mod enumerate;
 pub mod error;
+pub mod estimates;
 pub mod limits;
 pub mod npz;
 pub mod propagate;

@@ -34,8 +34,9 @@ deterministic world), with equality only under the best source.
   under the uniform source; it cannot exceed log K (log2 K bits).
 
 The estimate of a row is its bound over its own K sequences, in bits; it is written as
-a CSV (``row,estimate``) that ``fulcrum empowerment score`` and
-``fulcrum.empowerment.score`` read. The script prints the bound's mean over the rows every
+a CSV (``row,state,horizon,estimate``) that ``fulcrum empowerment score`` and
+``fulcrum.empowerment.score`` read, and that ``fulcrum train --empowerment-from`` trains
+on when the dataset holds every state (``--states all``) at the horizons the run uses. The script prints the bound's mean over the rows every
 ``--log-every`` steps and, at the end, the score.
 """
 
@@ -83,6 +84,7 @@ def load(path):
         "projections": len(z["proj_key"]),
         "E": z["E"],
         "horizon": z["horizon"],
+        "state": z["state"],
     }
 
 
@@ -167,6 +169,16 @@ def train(data, estimator, steps, batch=64, lr=1e-3, seed=0, log_every=0):
     return model, curve
 
 
+def write_estimates(path, data, est):
+    """The estimates as `row,state,horizon,estimate`: `fulcrum empowerment score` reads
+    the rows, `fulcrum train --empowerment-from` the states (hex of the packed bytes)."""
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["row", "state", "horizon", "estimate"])
+        for i, v in enumerate(est):
+            w.writerow([i, bytes(data["state"][i]).hex(), int(data["horizon"][i]), f"{v:.6f}"])
+
+
 def main():
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("dataset", help="an .npz of `fulcrum empowerment dataset`")
@@ -176,16 +188,13 @@ def main():
     p.add_argument("--lr", type=float, default=1e-3)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--log-every", type=int, default=500)
-    p.add_argument("--out", default="estimates.csv", help="the estimates, row,estimate (bits)")
+    p.add_argument("--out", default="estimates.csv", help="the estimates, row,state,horizon,estimate (bits)")
     args = p.parse_args()
     torch.set_num_threads(max(1, torch.get_num_threads()))
     data = load(args.dataset)
     model, _ = train(data, args.estimator, args.steps, args.batch, args.lr, args.seed, args.log_every)
     est = estimate(model, data)
-    with open(args.out, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["row", "estimate"])
-        w.writerows((i, f"{v:.6f}") for i, v in enumerate(est))
+    write_estimates(args.out, data, est)
     try:
         from fulcrum import empowerment
 

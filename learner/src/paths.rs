@@ -14,6 +14,11 @@ impl RunPaths {
     pub fn config(&self) -> PathBuf {
         self.dir.join("config.toml")
     }
+    /// `empowerment-estimates.csv`: the copy of `train --empowerment-from FILE` the run's
+    /// service serves from.
+    pub fn estimates(&self) -> PathBuf {
+        self.dir.join("empowerment-estimates.csv")
+    }
     /// `metrics.csv`.
     pub fn metrics(&self) -> PathBuf {
         self.dir.join("metrics.csv")

@@ -76,5 +76,5 @@ def test_script_writes_estimates_the_cli_scores(tiny, tmp_path, fulcrum_bin):
 
     got = json.loads(r.stdout)
     assert got["n"] == 200
-    est = np.loadtxt(out, delimiter=",", skiprows=1)[:, 1]
+    est = np.loadtxt(out, delimiter=",", skiprows=1, usecols=3)
     assert got == empowerment.score(est, str(tiny))

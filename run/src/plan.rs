@@ -101,6 +101,13 @@ pub fn resolve(a: &TrainRequest) -> Result<Planned> {
     }
     std::fs::create_dir_all(paths.plots())
         .with_context(|| format!("cannot create {}", dir.display()))?;
+    if let Some(from) = &cfg.empowerment_from {
+        // The run keeps its own copy: a resume serves the same table whatever became
+        // of the file.
+        let bytes = std::fs::read(from).with_context(|| format!("cannot read {from}"))?;
+        fulcrum_contracts::fsio::write_atomic(&paths.estimates(), &bytes)
+            .with_context(|| format!("cannot write {}", paths.estimates().display()))?;
+    }
     write_config(&paths, &cfg)?;
     Ok(Planned {
         cfg,
@@ -231,6 +238,11 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
             "--objects does not fit a world family: each layout of '{spec}' names its own task object"
         ));
     }
+    if family.is_some() && a.empowerment_from.is_some() {
+        return bad(format!(
+            "--empowerment-from does not fit a world family: estimates name the states of one world, and '{spec}' makes a new one each episode"
+        ));
+    }
     if family.is_some() && request.remote {
         return bad(format!(
             "'{spec}' is a world family, and a run across hosts trains on one world only"
@@ -283,6 +295,7 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
         intrinsic: form,
         horizon_mode: mode,
         empowerment_model: a.empowerment_model.unwrap_or_default(),
+        empowerment_from: None,
         tool: a.tool.clone().unwrap_or_default(),
         objects: a.objects.clone().unwrap_or_default(),
         horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
@@ -353,8 +366,45 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
             }
             cfg.beta = form.default_beta(e.beta, max);
         }
+        if let Some(file) = &a.empowerment_from {
+            // Every state needs its estimates: checked now, before any process starts.
+            estimates_table(&w, &cfg, file)?;
+            cfg.empowerment_from = Some(
+                std::fs::canonicalize(file)
+                    .unwrap_or(file.clone())
+                    .display()
+                    .to_string(),
+            );
+        }
     }
     Ok((cfg, w))
+}
+
+/// The LOOKUP table a run's service serves from the estimates in `file`
+/// ([`fulcrum_empowerment::estimates`]), for the run's channel and form.
+pub fn estimates_table(w: &World, cfg: &RunConfig, file: &Path) -> Result<Vec<f32>> {
+    let text = std::fs::read_to_string(file).map_err(|e| {
+        BadRequest(format!(
+            "cannot read --empowerment-from {}: {e}",
+            file.display()
+        ))
+    })?;
+    let mw = model_world(w, cfg.empowerment_model);
+    let engine = fulcrum_empowerment::Engine::new(&mw, fulcrum_empowerment::Limits::default())?;
+    let set = objects_or_default(
+        &mw,
+        (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+    )?;
+    let tool = fulcrum_empowerment::request::tool_sel(&mw, &engine, cfg.tool.as_request(), &set)?;
+    Ok(fulcrum_empowerment::estimates::lookup_from_estimates(
+        &engine,
+        tool,
+        cfg.horizon_unequipped,
+        cfg.horizon_equipped,
+        cfg.intrinsic.horizon_sum(),
+        &text,
+        &file.display().to_string(),
+    )?)
 }
 
 /// Layouts of a family whose potentials set horizon-potential's default beta.

@@ -66,6 +66,14 @@ pub struct Fixed {
     /// slip 0 and every rule's p 1: what ignoring the noise gives) [default: exact].
     #[arg(long, value_parser = named::<EmpowermentModel>(&["exact", "deterministic"]))]
     pub empowerment_model: Option<EmpowermentModel>,
+    /// Serve the intrinsic reward from someone's estimates of E instead of the exact
+    /// values: a CSV with the columns state (76 hex digits of the packed state),
+    /// horizon and estimate (bits), every state of the space at the horizons the form
+    /// uses (`examples/python/learned_empowerment.py` writes one from a dataset made
+    /// with --states all). Beta's default stays the exact table's, so the two runs
+    /// differ only in E.
+    #[arg(long, value_name = "FILE")]
+    pub empowerment_from: Option<std::path::PathBuf>,
     /// Two value heads, as RND: the task reward and the intrinsic reward get their own
     /// value estimates and GAE, the intrinsic reward divided by the running standard
     /// deviation of the intrinsic rewards so far, so that beta weighs the intrinsic
@@ -197,6 +205,11 @@ impl Fixed {
                 "--beta and --no-empowerment (or --intrinsic none) contradict each other: choose one",
             );
         }
+        if self.empowerment_from.is_some() && (none || self.form() == Some(Intrinsic::Count)) {
+            return refuse(
+                "--empowerment-from needs a form that uses E (not --no-empowerment, --intrinsic none or count)",
+            );
+        }
         if none && self.empowerment_model.is_some() {
             return refuse(
                 "--empowerment-model and --no-empowerment (or --intrinsic none) contradict each other: a run without empowerment computes none",
@@ -250,6 +263,7 @@ mod tests {
             paper: true,
             horizon_mode: Some(HorizonMode::Fixed),
             empowerment_model: Some(EmpowermentModel::Deterministic),
+            empowerment_from: Some("e.csv".into()),
             intrinsic_value_head: true,
             gamma_int: Some(0.9),
             no_action_mask: true,
@@ -269,7 +283,7 @@ mod tests {
             minibatches: Some(1),
             ppo_preset: Some(Preset::CleanRl),
         };
-        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --empowerment-model --intrinsic-value-head --gamma-int --no-action-mask --view --layouts --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
+        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --empowerment-model --empowerment-from --intrinsic-value-head --gamma-int --no-action-mask --view --layouts --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
         assert_eq!(all.given().join(" "), want);
         let two = Fixed {
             view: Some(View::Full),

@@ -119,8 +119,13 @@ pub struct ServeArgs {
     pub world: Option<String>,
     /// The service of a training run: world, tool, objects, horizons, the table's form,
     /// model and clients all from RUN/config.toml (what `fulcrum train` starts).
-    #[arg(long, value_name = "RUN", conflicts_with_all = ["world", "tool", "objects", "horizon_unequipped", "horizon_equipped", "horizon_sum", "model", "max_clients"])]
+    #[arg(long, value_name = "RUN", conflicts_with_all = ["world", "tool", "objects", "horizon_unequipped", "horizon_equipped", "horizon_sum", "model", "max_clients", "empowerment_from"])]
     pub run: Option<PathBuf>,
+    /// LOOKUP answers from these estimates of E instead of the exact table: a CSV with
+    /// the columns state (76 hex digits of the packed state), horizon and estimate, every
+    /// state at the horizons the table uses (as `train --empowerment-from`).
+    #[arg(long, value_name = "FILE")]
+    pub empowerment_from: Option<PathBuf>,
     /// Tool of the lookup table: a tool name, `all`, or `auto` (tool selection by the
     /// matrix). Default: the world's [empowerment] tool.
     #[arg(long)]

@@ -32,13 +32,17 @@ struct Served {
     horizon_sum: bool,
     model: EmpowermentModel,
     max_clients: usize,
+    /// Estimates LOOKUP answers from instead of the exact table.
+    estimates: Option<std::path::PathBuf>,
 }
 
 impl Served {
     fn from_args(a: &ServeArgs) -> Result<Served> {
         if let Some(dir) = &a.run {
-            let (cfg, w) = load_run(&RunPaths { dir: dir.clone() })?;
+            let paths = RunPaths { dir: dir.clone() };
+            let (cfg, w) = load_run(&paths)?;
             return Ok(Served {
+                estimates: cfg.empowerment_from.as_ref().map(|_| paths.estimates()),
                 world: w,
                 tool: cfg.tool.as_request().map(str::to_string),
                 objects: (!cfg.objects.is_empty()).then(|| cfg.objects.clone()),
@@ -59,6 +63,7 @@ impl Served {
             horizon_sum: a.horizon_sum,
             model: a.model.parse().map_err(BadRequest)?,
             max_clients: a.max_clients,
+            estimates: a.empowerment_from.clone(),
         })
     }
 }
@@ -131,7 +136,28 @@ pub fn run(args: &ServeArgs) -> Result<()> {
         spin: Duration::from_micros(100),
         max_clients: a.max_clients,
     };
-    let mut tables = Tables::new(e, cfg)?;
+    let mut tables = match &a.estimates {
+        None => Tables::new(e, cfg)?,
+        Some(file) => {
+            let text = std::fs::read_to_string(file).map_err(|err| {
+                BadRequest(format!(
+                    "cannot read the estimates {}: {err}",
+                    file.display()
+                ))
+            })?;
+            let values = fulcrum_empowerment::estimates::lookup_from_estimates(
+                &e,
+                tool,
+                hu,
+                he,
+                a.horizon_sum,
+                &text,
+                &file.display().to_string(),
+            )?;
+            eprintln!("LOOKUP answers from the estimates in {}", file.display());
+            Tables::with_values(e, cfg, values)
+        }
+    };
     let (_, stats) = serve(&mut tables, |d| {
         let about = format!(
             "world {} (hash {:016x}){}, {} states, {} -> {}, h = {hu} unequipped / {he} equipped, service fulcrum/{}/empowerment",
@@ -203,6 +229,11 @@ fn serve_family(args: &ServeArgs) -> Result<Option<()>> {
         if args.objects.is_some() {
             return bad(format!(
                 "--objects does not fit a world family: each layout of '{spec}' names its own task object"
+            ));
+        }
+        if args.empowerment_from.is_some() {
+            return bad(format!(
+                "--empowerment-from does not fit a world family: estimates name the states of one world, and '{spec}' is many"
             ));
         }
         let family = load_family(spec)?;

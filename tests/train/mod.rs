@@ -13,6 +13,7 @@ use iceoryx2::prelude::*;
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod chaos;
+mod estimates;
 mod eval;
 mod family;
 mod forms;

@@ -40,15 +40,23 @@ impl<'w> Tables<'w> {
             cfg.horizon_equipped,
             cfg.horizon_sum,
         )?;
+        Ok(Self::with_values(engine, cfg, values))
+    }
+
+    /// Serve LOOKUP from `values` (one per state id: E, or Phi with `horizon_sum`)
+    /// instead of the exact table, e.g. [`crate::estimates::lookup_from_estimates`];
+    /// QUERY still computes exactly.
+    pub fn with_values(engine: Engine<'w>, cfg: ServeConfig, values: Vec<f32>) -> Self {
+        assert_eq!(values.len(), engine.space.len(), "one value per state");
         let describe = describe(&engine, &cfg);
-        Ok(Tables {
+        Tables {
             values,
             engine,
             cfg,
             cache: VecDeque::new(),
             describe,
             visits: Vec::new(),
-        })
+        }
     }
 
     /// The DESCRIBE answer.
