@@ -70,6 +70,7 @@ mod tests {
             intrinsic: Intrinsic::Additive,
             horizon_mode: HorizonMode::Switch,
             empowerment_model: fulcrum_contracts::config::EmpowermentModel::Exact,
+            empowerment_from: None,
             tool: ChannelTool::Auto,
             objects: String::new(),
             horizon_unequipped: 2,
