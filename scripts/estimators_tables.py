@@ -93,11 +93,13 @@ def main():
             cells += [fmt(mean(x)), fmt(mean([abs(v) for v in d])), fmt(mean(d)), fmt(spearman(x, y), 2)]
         p("| " + " | ".join(cells) + " |")
 
-    p("\n## The gap by true value (every channel and horizon pooled)\n")
+    # The pooled tables take the deterministic worlds (a noisy world's E is a capacity).
+    det = [r for r in rows if not r["world"].endswith("-slip")]
+    p("\n## The gap by true value (the deterministic worlds' channels and horizons pooled)\n")
     p("| true E (bits) | states | variational: mean estimate | bias | InfoNCE: mean estimate | bias |")
     p("|---|---|---|---|---|---|")
     bins = defaultdict(lambda: defaultdict(list))
-    for r in rows:
+    for r in det:
         bins[math.floor(r["true"])][r["estimator"]].append(r)
     for lo in sorted(bins):
         n = len(bins[lo][ESTIMATORS[0]])
@@ -107,13 +109,13 @@ def main():
             cells += [fmt(mean([r["estimate"] for r in rs])), fmt(mean([r["estimate"] - r["true"] for r in rs]))]
         p("| " + " | ".join(cells) + " |")
 
-    p("\n## By horizon and by what is projected (MAE in bits, pooled)\n")
+    p("\n## By horizon and by what is projected (MAE in bits, deterministic worlds pooled)\n")
     p("| group | states | variational MAE | InfoNCE MAE | mean E |")
     p("|---|---|---|---|---|")
-    groups = [(f"h = {h}", lambda r, h=h: r["horizon"] == h) for h in sorted({r["horizon"] for r in rows})]
+    groups = [(f"h = {h}", lambda r, h=h: r["horizon"] == h) for h in sorted({r["horizon"] for r in det})]
     groups += [(kind, lambda r, kind=kind: objects_kind(r["objects"]) == kind) for kind in ["1 object", "2 objects", "agent"]]
     for name, keep in groups:
-        sel = {e: [r for r in rows if r["estimator"] == e and keep(r)] for e in ESTIMATORS}
+        sel = {e: [r for r in det if r["estimator"] == e and keep(r)] for e in ESTIMATORS}
         if not sel[ESTIMATORS[0]]:
             continue
         cells = [name, str(len(sel[ESTIMATORS[0]]))]
@@ -126,8 +128,8 @@ def main():
     p("| true E | states | InfoNCE mean | share within 0.25 bit of log2 K | variational mean |")
     p("|---|---|---|---|---|")
     for name, keep in [("below log2 K", lambda v: v < cap), ("log2 K or more", lambda v: v >= cap)]:
-        info = [r for r in rows if r["estimator"] == "infonce" and keep(r["true"])]
-        var = [r for r in rows if r["estimator"] == "variational" and keep(r["true"])]
+        info = [r for r in det if r["estimator"] == "infonce" and keep(r["true"])]
+        var = [r for r in det if r["estimator"] == "variational" and keep(r["true"])]
         if not info:
             continue
         near = sum(r["estimate"] >= cap - 0.25 for r in info) / len(info)
@@ -141,9 +143,9 @@ def main():
         import matplotlib.pyplot as plt
 
         fig, axes = plt.subplots(1, 2, figsize=(10, 4.6), sharey=True)
-        top = max(r["true"] for r in rows) + 0.5
+        top = max(r["true"] for r in det) + 0.5
         for ax, e in zip(axes, ESTIMATORS):
-            rs = [r for r in rows if r["estimator"] == e]
+            rs = [r for r in det if r["estimator"] == e]
             ax.scatter([r["true"] for r in rs], [r["estimate"] for r in rs], s=3, alpha=0.15)
             ax.plot([0, top], [0, top], "k--", lw=1, label="estimate = truth")
             ax.axhline(cap, color="r", lw=1, ls=":", label=f"log2 K = {cap:.0f}")
