@@ -19,7 +19,9 @@ E is exact: ``E^h_{j,D}(s) = log2 |R_h(s)|`` bits for tool j's actions over the 
 D, with ``h = h_e`` where j is held and ``h_u`` elsewhere (the world's
 ``[empowerment]`` values unless given). The table is computed once, when the wrapper is
 made; a step then costs one array read per environment, in Rust, in the same call as
-the step.
+the step. On a world family (``make_vec("toolbox", n, layouts=...)``) each layout has its
+own table, made the first time an episode plays it (the layout's own task object, the
+family's tool and horizons unless given); the count form is for one world.
 """
 
 from __future__ import annotations

@@ -44,6 +44,16 @@ impl FamilyEnvs {
         })
     }
 
+    /// The family.
+    pub(crate) fn family(&self) -> &fulcrum_world::family::Family {
+        self.pool.family()
+    }
+
+    /// The seeds episodes draw from.
+    pub(crate) fn seeds(&self) -> Range<u64> {
+        self.seeds.clone()
+    }
+
     /// The layouts, as given.
     pub(crate) fn label(&self) -> &str {
         &self.label

@@ -11,6 +11,14 @@
 //! through the state space's successor table, so a lookup is one array read (in a
 //! stochastic world the outcome drawn is looked up by its state instead).
 //!
+//! On a world family each environment's values come from its current layout's table,
+//! made the first time the layout is met (the family service's tables,
+//! [`FamilyTables`]: the layout's own task object, the tool by the family's
+//! `[empowerment]` or `tool`), and a potential form's reset potential from the layout an
+//! episode starts in; horizon-potential's default beta is 0.4 over the largest Phi of
+//! the first training layouts (at most 16), as `fulcrum train` sets it. The count form is
+//! for one world only.
+//!
 //! Output arrays, float32 (N,): `total` (r + beta b), `intrinsic` (beta b) and `value`
 //! (E(s_{t+1}), Phi(s_{t+1}) or N(s_{t+1})). A reset step of the next-step autoreset pays
 //! nothing.
@@ -18,6 +26,7 @@
 use std::str::FromStr;
 
 use fulcrum_contracts::intrinsic::{bonus, Intrinsic, Shaping};
+use fulcrum_empowerment::service::{FamilyConfig, FamilyTables};
 use fulcrum_empowerment::{request, Engine, EngineError, ToolSel};
 use fulcrum_world::{Episode, MAX_HORIZON};
 use numpy::{PyArray1, PyArrayMethods};
@@ -57,6 +66,8 @@ pub(crate) struct Shaper {
     value: Py<PyArray1<f32>>,
     summary: String,
     scratch: Scratch,
+    /// On a world family: a table per layout; `values` and the ids are unused.
+    family: Option<FamilyTables>,
 }
 
 /// One step's inputs to [`Shaping::chunk`] and its output, per environment.
@@ -67,6 +78,9 @@ struct Scratch {
     terminated: Vec<u8>,
     truncated: Vec<u8>,
     bonus: Vec<f32>,
+    /// On a family, the value of each environment's state: at a reset step, the
+    /// potential the new episode starts with.
+    start: Vec<f32>,
 }
 
 /// The output arrays: total reward, intrinsic part, value looked up.
@@ -193,8 +207,133 @@ impl Shaper {
                 terminated: vec![0; n],
                 truncated: vec![0; n],
                 bonus: vec![0.0; n],
+                start: vec![0.0; n],
             },
+            family: None,
         })
+    }
+
+    /// The shaper of a family's environments, whose episodes play the layouts `seeds`
+    /// and are now at `eps` on the layouts `layouts`.
+    pub(crate) fn for_family(
+        py: Python<'_>,
+        family: &fulcrum_world::family::Family,
+        seeds: std::ops::Range<u64>,
+        s: Settings<'_>,
+        eps: &[Episode],
+        layouts: &[u64],
+    ) -> PyResult<Shaper> {
+        let form = Intrinsic::from_str(s.form).map_err(value_error)?;
+        if form == Intrinsic::Count {
+            return Err(value_error(
+                "the count form counts the visits of one world's states: on a family's layouts it is not offered",
+            ));
+        }
+        if s.objects.is_some() {
+            return Err(value_error(format!(
+                "objects does not fit a world family: each layout of '{}' names its own task object",
+                family.name
+            )));
+        }
+        if let Some(beta) = s.beta.filter(|b| !b.is_finite()) {
+            return Err(value_error(format!("beta is {beta}: give a finite number")));
+        }
+        if !(s.gamma.is_finite() && (0.0..=1.0).contains(&s.gamma)) {
+            return Err(value_error(format!(
+                "gamma is {}: give a number in [0, 1]",
+                s.gamma
+            )));
+        }
+        let hu = s.horizon_unequipped.unwrap_or(family.horizon_unequipped);
+        let he = s.horizon_equipped.unwrap_or(family.horizon_equipped);
+        for h in [hu, he] {
+            if h > MAX_HORIZON {
+                return Err(EngineError::HorizonTooLarge {
+                    h,
+                    max: MAX_HORIZON,
+                })
+                .py_err();
+            }
+        }
+        let cfg = FamilyConfig {
+            tool: s.tool.map(str::to_string),
+            horizon_unequipped: hu,
+            horizon_equipped: he,
+            horizon_sum: form.horizon_sum(),
+            cache_bytes: 256 << 20,
+            keep: 0,
+        };
+        let mut tables = FamilyTables::new(family.clone(), cfg).map_err(value_error)?;
+        // The training layouts' potentials set horizon-potential's default beta (held-out
+        // layouts: the first 16 training layouts, as a run on every layout has).
+        let top = if seeds.start == 0 {
+            seeds.end
+        } else {
+            u64::MAX
+        }
+        .min(16);
+        let mut max = 0.0f32;
+        if form.uses_empowerment() {
+            for seed in 0..top {
+                max = max.max(py.detach(|| tables.max_value(seed)).ok_or_else(|| {
+                    value_error(format!("layout {seed} of '{}' has no table", family.name))
+                })?);
+            }
+        }
+        let beta = s.beta.unwrap_or(form.default_beta(family.beta, max as f64));
+        let n = eps.len();
+        let mut sh = Shaper {
+            shaping: Shaping {
+                form,
+                gamma: s.gamma as f32,
+                phi_reset: 0.0,
+                inventory_reset: 0,
+            },
+            beta: beta as f32,
+            visits: Vec::new(),
+            values: Vec::new(),
+            init_id: 0,
+            ids: vec![0; n],
+            phi: vec![0.0; n],
+            inv: vec![0; n],
+            paid: vec![false; n],
+            total: PyArray1::zeros(py, [n], false).unbind(),
+            intrinsic: PyArray1::zeros(py, [n], false).unbind(),
+            value: PyArray1::zeros(py, [n], false).unbind(),
+            summary: format!(
+                "{form}: beta {beta}, {} -> each layout's task object, h {hu} unequipped / {he} equipped, gamma {}",
+                s.tool.unwrap_or("the family's tool"),
+                s.gamma
+            ),
+            scratch: Scratch {
+                next: vec![0.0; n],
+                next_inv: vec![0; n],
+                terminated: vec![0; n],
+                truncated: vec![0; n],
+                bonus: vec![0.0; n],
+                start: vec![0.0; n],
+            },
+            family: Some(tables),
+        };
+        sh.sync_family(eps, layouts);
+        Ok(sh)
+    }
+
+    /// A family's episodes start (again) where they are now: potential, inventory.
+    fn sync_family(&mut self, eps: &[Episode], layouts: &[u64]) {
+        let potential = self.shaping.form.is_potential();
+        let Some(t) = self.family.as_mut() else {
+            return;
+        };
+        for (e, ep) in eps.iter().enumerate() {
+            self.phi[e] = if potential {
+                t.lookup(layouts[e], &ep.state).unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            self.inv[e] = ep.state.inventory;
+            self.paid[e] = false;
+        }
     }
 
     /// Take the episodes' current states as the start (attaching mid-episode).
@@ -213,15 +352,30 @@ impl Shaper {
         Ok(())
     }
 
-    /// The episodes where `which` is true start again.
-    pub(crate) fn reset(&mut self, py: Python<'_>, which: &[bool]) -> PyResult<()> {
+    /// The episodes where `which` is true start again (at `eps`, on the layouts
+    /// `layouts` of a family).
+    pub(crate) fn reset(
+        &mut self,
+        py: Python<'_>,
+        which: &[bool],
+        eps: &[Episode],
+        layouts: &[u64],
+    ) -> PyResult<()> {
         let b = self.bufs(py);
         // SAFETY: as in `views`.
         let v = unsafe { b.views(which.len())? };
+        let potential = self.shaping.form.is_potential();
         for (e, _) in which.iter().enumerate().filter(|(_, &w)| w) {
             self.ids[e] = self.init_id;
-            self.phi[e] = self.shaping.phi_reset;
-            self.inv[e] = self.shaping.inventory_reset;
+            self.phi[e] = match self.family.as_mut() {
+                Some(t) if potential => t.lookup(layouts[e], &eps[e].state).unwrap_or(0.0),
+                Some(_) => 0.0,
+                None => self.shaping.phi_reset,
+            };
+            self.inv[e] = match self.family {
+                Some(_) => eps[e].state.inventory,
+                None => self.shaping.inventory_reset,
+            };
             self.paid[e] = false;
             v.total[e] = 0.0;
             v.intrinsic[e] = 0.0;
@@ -262,6 +416,10 @@ impl Shaper {
     ) {
         let form = self.shaping.form;
         let n = eps.len();
+        if self.family.is_some() {
+            self.after_family_step(eps, was_reset, v, out);
+            return;
+        }
         if form == Intrinsic::Additive {
             // The paper's form, b_t = E(s_{t+1}) (`intrinsic::bonus`): one tight pass.
             let (succ, na) = (engine.space.succ_table(), engine.space.num_actions());
@@ -371,6 +529,59 @@ impl Shaper {
                 s.bonus[e] = 0.0;
                 self.phi[e] = self.shaping.phi_reset;
                 self.inv[e] = self.shaping.inventory_reset;
+                self.paid[e] = false;
+            }
+            let intrinsic = self.beta * s.bonus[e];
+            out.intrinsic[e] = intrinsic;
+            out.total[e] = v.reward[e] + intrinsic;
+            out.value[e] = s.next[e];
+        }
+    }
+}
+
+impl Shaper {
+    /// [`Shaper::after_step`] on a family: each value from the environment's current
+    /// layout's table, each reset potential from the layout the new episode plays.
+    fn after_family_step(
+        &mut self,
+        eps: &[Episode],
+        was_reset: &[bool],
+        v: &Views<'_>,
+        out: &mut ShaperViews<'_>,
+    ) {
+        let form = self.shaping.form;
+        let Some(tables) = self.family.as_mut() else {
+            return;
+        };
+        let s = &mut self.scratch;
+        for (e, ep) in eps.iter().enumerate() {
+            let value = if form.uses_empowerment() {
+                tables.lookup(v.layout[e], &ep.state).unwrap_or(0.0)
+            } else {
+                0.0
+            };
+            s.next[e] = if was_reset[e] { 0.0 } else { value };
+            s.next_inv[e] = ep.state.inventory;
+            s.terminated[e] = (v.terminated[e] && !was_reset[e]) as u8;
+            s.truncated[e] = (v.truncated[e] && !was_reset[e]) as u8;
+            // The reset step's own value: the new episode's start potential.
+            s.start[e] = value;
+        }
+        self.shaping.chunk(
+            &s.next,
+            &s.next_inv,
+            &s.terminated,
+            &s.truncated,
+            &mut self.phi,
+            &mut self.inv,
+            &mut self.paid,
+            &mut s.bonus,
+        );
+        for (e, &reset) in was_reset.iter().enumerate() {
+            if reset {
+                s.bonus[e] = 0.0;
+                self.phi[e] = if form.is_potential() { s.start[e] } else { 0.0 };
+                self.inv[e] = eps[e].state.inventory;
                 self.paid[e] = false;
             }
             let intrinsic = self.beta * s.bonus[e];

@@ -330,7 +330,7 @@ impl VecCore {
             v.truncated[e] = false;
         }
         for sh in &mut self.shapers {
-            sh.reset(py, &which)?;
+            sh.reset(py, &which, &self.eps, v.layout)?;
         }
         Ok(())
     }
@@ -442,34 +442,30 @@ impl VecCore {
         horizon_equipped: Option<u32>,
         gamma: f64,
     ) -> PyResult<crate::shaper::Outputs> {
-        if let Some(f) = &self.family {
-            return Err(value_error(format!(
-                "an intrinsic reward over a family's layouts (layouts={:?}) is not offered in Python yet: `fulcrum train {}` computes it for every layout",
-                f.label(),
-                self.world.name
-            )));
-        }
         if self.shapers.len() == MAX_SHAPERS {
             return Err(value_error(format!(
                 "this environment has {MAX_SHAPERS} intrinsic rewards attached already: at most {MAX_SHAPERS}"
             )));
         }
+        let settings = crate::shaper::Settings {
+            form,
+            beta,
+            tool,
+            objects,
+            horizon_unequipped,
+            horizon_equipped,
+            gamma,
+        };
+        if let Some(f) = &self.family {
+            let layouts = self.layout.bind(py).readonly().as_slice()?.to_vec();
+            let sh = Shaper::for_family(py, f.family(), f.seeds(), settings, &self.eps, &layouts)?;
+            let arrays = sh.arrays(py);
+            self.shapers.push(sh);
+            return Ok(arrays);
+        }
         let pw = self.pyworld.clone_ref(py);
         let engine = pw.get().engine(py)?;
-        let mut sh = Shaper::new(
-            py,
-            engine,
-            self.eps.len(),
-            crate::shaper::Settings {
-                form,
-                beta,
-                tool,
-                objects,
-                horizon_unequipped,
-                horizon_equipped,
-                gamma,
-            },
-        )?;
+        let mut sh = Shaper::new(py, engine, self.eps.len(), settings)?;
         // Start from where the episodes are now.
         sh.sync(engine, &self.eps)?;
         let arrays = sh.arrays(py);

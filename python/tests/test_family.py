@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import fulcrum
+from fulcrum import empowerment
 from fulcrum.wrappers import EmpowermentReward
 
 
@@ -112,5 +113,58 @@ def test_bad_layouts_are_one_sentence():
     with pytest.raises(ValueError, match="needs a world family, and 'exp1-tree' is one world"):
         fulcrum.make_vec("exp1-tree", 2, layouts=16)
     env = fulcrum.make_vec("toolbox", 2, layouts=16)
-    with pytest.raises(ValueError, match="not offered in Python yet"):
-        EmpowermentReward(env)
+    with pytest.raises(ValueError, match="the count form counts the visits of one world"):
+        EmpowermentReward(env, form="count")
+    with pytest.raises(ValueError, match="objects does not fit a world family"):
+        EmpowermentReward(env, objects="tree")
+
+
+def _phi(world, state):
+    """Phi = sum over h = 1..H of E^h, H the larger of the layout's horizons."""
+    d = world.empowerment_defaults
+    top = max(d["horizon_unequipped"], d["horizon_equipped"])
+    return sum(empowerment.value(world, state, horizon=h) for h in range(1, top + 1))
+
+
+@pytest.mark.parametrize("form", ["additive", "horizon-potential"])
+def test_the_reward_wrapper_reads_each_layouts_own_table(form):
+    """Each step's value is E (or Phi) of the state on the episode's own layout, made as
+    one world; a potential episode starts from its new layout's start potential."""
+    beta, gamma = 0.5, 0.9
+    env = EmpowermentReward(fulcrum.make_vec("toolbox", 4, layouts=6), form=form, beta=beta, gamma=gamma)
+    rng = np.random.default_rng(1)
+    _, info = env.reset(seed=3)
+    layouts = {}
+    prev = [None] * 4  # (layout, packed state) before the step; None after an end
+    ended = [False] * 4
+    checked_starts = nonzero_starts = 0
+    for _ in range(400):
+        masks = info["action_mask"]
+        actions = np.array([rng.choice(np.flatnonzero(m)) for m in masks])
+        before = [(int(info["layout"][e]), bytes(env.unwrapped.states[e])) for e in range(4)]
+        _, reward, term, trunc, info = env.step(actions)
+        for e in range(4):
+            seed = int(info["layout"][e])
+            w = layouts.setdefault(seed, fulcrum.World.layout("toolbox", seed))
+            s = bytes(env.unwrapped.states[e])
+            if ended[e]:
+                # The reset step pays nothing.
+                assert info["intrinsic_reward"][e] == 0.0
+            elif form == "additive":
+                want = empowerment.value(w, s)
+                assert info["empowerment"][e] == pytest.approx(want, rel=1e-5, abs=1e-6)
+                assert info["intrinsic_reward"][e] == pytest.approx(beta * want, rel=1e-5, abs=1e-6)
+            else:
+                pw = layouts[before[e][0]]
+                phi_next = 0.0 if term[e] else _phi(w, s)
+                want = beta * (gamma * phi_next - _phi(pw, before[e][1]))
+                assert info["intrinsic_reward"][e] == pytest.approx(want, rel=1e-4, abs=1e-5)
+                if prev[e] is None:
+                    checked_starts += 1
+                    nonzero_starts += _phi(pw, before[e][1]) > 0
+            prev[e] = None if ended[e] else before[e]
+            ended[e] = bool(term[e] or trunc[e])
+    if form == "horizon-potential":
+        # Episodes began on several layouts, each paid from its own start potential.
+        assert checked_starts >= 8 and nonzero_starts >= 2, (checked_starts, nonzero_starts)
+    assert len(layouts) >= 3

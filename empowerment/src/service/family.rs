@@ -185,6 +185,12 @@ impl FamilyTables {
         self.tables.get_mut(&seed).and_then(Option::as_mut)
     }
 
+    /// The largest value of layout `seed`'s table (`None`: no table can be made for it).
+    pub fn max_value(&mut self, seed: u64) -> Option<f32> {
+        let t = self.table(seed)?;
+        Some(t.values.iter().copied().fold(0.0f32, f32::max))
+    }
+
     /// LOOKUP's answer for one state of layout `seed`; `None` where the state is not one of
     /// the layout's.
     pub fn lookup(&mut self, seed: u64, s: &State) -> Option<f32> {
