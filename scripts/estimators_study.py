@@ -29,15 +29,14 @@ REPO = Path(__file__).resolve().parents[1]
 OUT = REPO / "experiments" / "estimators"
 STATES = REPO / "docs" / "results" / "estimators-states.csv.gz"
 
-# (world, tool, objects): each world's training channel (two objects on exp2 and exp3),
-# one object of exp3's, and the agent.
+# (world, tool, objects): each world's training channel (one object on exp1-tree, two on
+# exp2 and exp3) and the agent's cell.
 CHANNELS = [
     ("exp1-tree", "axe", "tree"),
     ("exp1-tree", "axe", "agent"),
     ("exp2", "wand", "boulder+door"),
     ("exp2", "wand", "agent"),
     ("exp3", "axe", "door+boulder"),
-    ("exp3", "axe", "door"),
     ("exp3", "axe", "agent"),
 ]
 HORIZONS = [1, 3, 5, 8]
