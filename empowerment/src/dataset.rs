@@ -312,7 +312,7 @@ impl Dataset {
     /// The dataset as named arrays (the `.npz` layout of the module doc), with what was
     /// asked: `world`, `tool`, `objects`, `view` (strings), `seed`, and `actions` (the
     /// world's action names, indexed as in `seq_actions`).
-    pub fn arrays(&self, w: &World, spec: &Spec) -> Vec<crate::npz::Array> {
+    pub fn into_arrays(self, w: &World, spec: &Spec) -> Vec<crate::npz::Array> {
         use crate::npz::{Array, Data};
         let (n, m) = (self.len(), self.seq_row.len());
         let (gh, gw) = self.grid;
@@ -324,36 +324,25 @@ impl Dataset {
             .map(|a| w.action_name(a))
             .collect();
         let p = self.proj_key.len() / self.key_len.max(1);
+        let e = self.e;
         vec![
-            Array::new("glyphs", &[n, gh, gw], Data::U8(self.glyphs.clone())),
-            Array::new("flags", &[n, self.flag_len], Data::U8(self.flags.clone())),
-            Array::new("state", &[n, 38], Data::U8(self.state.clone())),
-            Array::new("normal", &[n], Data::Bool(self.normal.clone())),
-            Array::new("E", &[n], Data::F64(self.e.clone())),
-            Array::new("gap", &[n], Data::F64(self.gap.clone())),
-            Array::new("horizon", &[n], Data::U32(self.horizon.clone())),
-            Array::new("state_id", &[n], Data::U32(self.ids.clone())),
-            Array::new("seq_row", &[m], Data::U32(self.seq_row.clone())),
-            Array::new(
-                "seq_actions",
-                &[m, self.h_max],
-                Data::U8(self.seq_actions.clone()),
-            ),
-            Array::new(
-                "seq_final_state",
-                &[m, 38],
-                Data::U8(self.seq_final_state.clone()),
-            ),
-            Array::new("seq_proj", &[m], Data::U32(self.seq_proj.clone())),
-            Array::new(
-                "proj_key",
-                &[p, self.key_len],
-                Data::U16(self.proj_key.clone()),
-            ),
+            Array::new("glyphs", &[n, gh, gw], Data::U8(self.glyphs)),
+            Array::new("flags", &[n, self.flag_len], Data::U8(self.flags)),
+            Array::new("state", &[n, 38], Data::U8(self.state)),
+            Array::new("normal", &[n], Data::Bool(self.normal)),
+            Array::new("E", &[n], Data::F64(e)),
+            Array::new("gap", &[n], Data::F64(self.gap)),
+            Array::new("horizon", &[n], Data::U32(self.horizon)),
+            Array::new("state_id", &[n], Data::U32(self.ids)),
+            Array::new("seq_row", &[m], Data::U32(self.seq_row)),
+            Array::new("seq_actions", &[m, self.h_max], Data::U8(self.seq_actions)),
+            Array::new("seq_final_state", &[m, 38], Data::U8(self.seq_final_state)),
+            Array::new("seq_proj", &[m], Data::U32(self.seq_proj)),
+            Array::new("proj_key", &[p, self.key_len], Data::U16(self.proj_key)),
             Array::new(
                 "tool_actions",
                 &[self.tool_actions.len()],
-                Data::U8(self.tool_actions.clone()),
+                Data::U8(self.tool_actions),
             ),
             Array::new("world", &[], Data::Str(vec![w.name.clone()])),
             Array::new("tool", &[], Data::Str(vec![spec.tool.name(w)])),

@@ -383,7 +383,7 @@ pub fn dataset<'py>(
     };
     let ds = py.detach(|| build(e, &spec, method)).py_err()?;
     let d = PyDict::new(py);
-    for a in ds.arrays(w, &spec) {
+    for a in ds.into_arrays(w, &spec) {
         let shape = a.shape.clone();
         let name = a.name.as_str();
         match a.data {

@@ -25,10 +25,6 @@ pub(super) fn dataset(a: &DatasetArgs) -> Result<()> {
         sequences: a.sequences,
     };
     let d = dataset::build(&r.e, &spec, a.channel.method.into())?;
-    let bytes = npz::to_npz(&d.arrays(&w, &spec))?;
-    fulcrum_contracts::fsio::write_atomic(&a.out, &bytes).map_err(|e| {
-        fulcrum_run::BadRequest(format!("cannot write --out {}: {e}", a.out.display()))
-    })?;
     let normal: Vec<f64> =
         d.e.iter()
             .zip(&d.normal)
@@ -39,19 +35,29 @@ pub(super) fn dataset(a: &DatasetArgs) -> Result<()> {
     let mut hs = d.horizon.clone();
     hs.sort_unstable();
     hs.dedup();
+    let (rows, sequences, projections, mean_e) = (
+        d.len(),
+        d.seq_row.len(),
+        d.proj_key.len() / d.key_len.max(1),
+        mean(&d.e),
+    );
+    let bytes = npz::to_npz(&d.into_arrays(&w, &spec))?;
+    fulcrum_contracts::fsio::write_atomic(&a.out, &bytes).map_err(|e| {
+        fulcrum_run::BadRequest(format!("cannot write --out {}: {e}", a.out.display()))
+    })?;
     if a.channel.json {
         let v = json!({
             "out": a.out.display().to_string(),
             "world": w.name,
             "tool": r.tool.name(&w),
             "objects": set_name(&w, &r.set),
-            "states": d.len(),
+            "states": rows,
             "space": r.e.space.len(),
             "normal": normal.len(),
             "horizons": hs,
-            "sequences": d.seq_row.len(),
-            "projections": d.proj_key.len() / d.key_len.max(1),
-            "mean_E": mean(&d.e),
+            "sequences": sequences,
+            "projections": projections,
+            "mean_E": mean_e,
             "mean_E_normal": mean(&normal),
             "bytes": bytes.len(),
         });
@@ -61,18 +67,18 @@ pub(super) fn dataset(a: &DatasetArgs) -> Result<()> {
     println!(
         "wrote {}: {} of {} states of {} ({} normal-mode), E^{} {} -> {}, {} sequences",
         a.out.display(),
-        d.len(),
+        rows,
         r.e.space.len(),
         w.name,
         normal.len(),
         hs.iter().map(u32::to_string).collect::<Vec<_>>().join("/"),
         r.tool.name(&w),
         set_name(&w, &r.set),
-        d.seq_row.len()
+        sequences
     );
     println!(
         "mean E {:.6} bits; over normal-mode states {:.6} bits",
-        mean(&d.e),
+        mean_e,
         mean(&normal)
     );
     Ok(())
