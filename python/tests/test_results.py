@@ -29,6 +29,8 @@ def run_script(name: str) -> str:
         ("robust_tables.py", "robust-tables.md"),
         ("trap_check_table.py", "trap-check-table.md"),
         ("layouts_tables.py", "layouts-tables.md"),
+        ("estimators_tables.py", "estimators-tables.md"),
+        ("estimators_ppo_table.py", "estimators-ppo-table.md"),
     ],
 )
 def test_a_results_table_recomputes_from_committed_data(script, table):
