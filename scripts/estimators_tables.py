@@ -149,7 +149,7 @@ def main():
             ax.scatter([r["true"] for r in rs], [r["estimate"] for r in rs], s=3, alpha=0.15)
             ax.plot([0, top], [0, top], "k--", lw=1, label="estimate = truth")
             ax.axhline(cap, color="r", lw=1, ls=":", label=f"log2 K = {cap:.0f}")
-            ax.set_title(f"{e}: every channel and horizon")
+            ax.set_title(f"{e}: deterministic worlds, every channel and horizon")
             ax.set_xlabel("exact E (bits)")
             ax.legend(loc="upper left")
         axes[0].set_ylabel("estimate (bits)")
