@@ -511,7 +511,21 @@ impl Shaper {
             s.terminated[e] = v.terminated[e] as u8;
             s.truncated[e] = v.truncated[e] as u8;
         }
-        // One time step of n worlds, as an actor's chunk is T of them.
+        let (phi, inv) = (self.shaping.phi_reset, self.shaping.inventory_reset);
+        self.pay(was_reset, v, out, |_| (phi, inv));
+    }
+
+    /// One time step of n worlds from the scratch's inputs (as an actor's chunk is T of
+    /// them), then the outputs; an episode that starts again at this step is paid
+    /// nothing and starts from `start(e)`: its potential and inventory.
+    fn pay(
+        &mut self,
+        was_reset: &[bool],
+        v: &Views<'_>,
+        out: &mut ShaperViews<'_>,
+        start: impl Fn(usize) -> (f32, u16),
+    ) {
+        let s = &mut self.scratch;
         self.shaping.chunk(
             &s.next,
             &s.next_inv,
@@ -522,13 +536,10 @@ impl Shaper {
             &mut self.paid,
             &mut s.bonus,
         );
-        for (e, &reset) in was_reset.iter().enumerate().take(n) {
+        for (e, &reset) in was_reset.iter().enumerate() {
             if reset {
-                // Nothing is paid, and the episode's potential and first-visit state stay
-                // as the end of the last episode left them: the start's.
                 s.bonus[e] = 0.0;
-                self.phi[e] = self.shaping.phi_reset;
-                self.inv[e] = self.shaping.inventory_reset;
+                (self.phi[e], self.inv[e]) = start(e);
                 self.paid[e] = false;
             }
             let intrinsic = self.beta * s.bonus[e];
@@ -567,28 +578,15 @@ impl Shaper {
             // The reset step's own value: the new episode's start potential.
             s.start[e] = value;
         }
-        self.shaping.chunk(
-            &s.next,
-            &s.next_inv,
-            &s.terminated,
-            &s.truncated,
-            &mut self.phi,
-            &mut self.inv,
-            &mut self.paid,
-            &mut s.bonus,
-        );
-        for (e, &reset) in was_reset.iter().enumerate() {
-            if reset {
-                s.bonus[e] = 0.0;
-                self.phi[e] = if form.is_potential() { s.start[e] } else { 0.0 };
-                self.inv[e] = eps[e].state.inventory;
-                self.paid[e] = false;
-            }
-            let intrinsic = self.beta * s.bonus[e];
-            out.intrinsic[e] = intrinsic;
-            out.total[e] = v.reward[e] + intrinsic;
-            out.value[e] = s.next[e];
-        }
+        let potential = form.is_potential();
+        let starts = std::mem::take(&mut s.start);
+        self.pay(was_reset, v, out, |e| {
+            (
+                if potential { starts[e] } else { 0.0 },
+                eps[e].state.inventory,
+            )
+        });
+        self.scratch.start = starts;
     }
 }
 
