@@ -324,13 +324,12 @@ impl Dataset {
             .map(|a| w.action_name(a))
             .collect();
         let p = self.proj_key.len() / self.key_len.max(1);
-        let e = self.e;
         vec![
             Array::new("glyphs", &[n, gh, gw], Data::U8(self.glyphs)),
             Array::new("flags", &[n, self.flag_len], Data::U8(self.flags)),
             Array::new("state", &[n, 38], Data::U8(self.state)),
             Array::new("normal", &[n], Data::Bool(self.normal)),
-            Array::new("E", &[n], Data::F64(e)),
+            Array::new("E", &[n], Data::F64(self.e)),
             Array::new("gap", &[n], Data::F64(self.gap)),
             Array::new("horizon", &[n], Data::U32(self.horizon)),
             Array::new("state_id", &[n], Data::U32(self.ids)),

@@ -33,15 +33,6 @@ fn horizon_arg(h: Option<u32>) -> PyResult<Option<u32>> {
     }
 }
 
-/// The horizon at a state: the one given, else the world's by whether the tool is held.
-fn horizon_at(w: &World, given: Option<u32>, tool: ToolSel, s: &State) -> u32 {
-    given.unwrap_or(if tool.held(s) {
-        w.empowerment.horizon_equipped
-    } else {
-        w.empowerment.horizon_unequipped
-    })
-}
-
 fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
     match set {
         ObjectSet::Agent => vec!["agent".to_string()],
@@ -160,7 +151,7 @@ pub fn landscape<'py>(
     let (mask, names) = holding_arg(w, holding)?;
     let (e, set, t) = channel(py, pw, tool, objects)?;
     let probe = e.landscape_state(0, 0, mask);
-    let h = horizon_at(w, horizon, t, &probe);
+    let h = fulcrum_empowerment::dataset::row_horizon(w, horizon, t, &probe);
     let l = py
         .detach(|| e.landscape(t, &set, h, mask, method))
         .py_err()?;
@@ -313,7 +304,7 @@ pub fn value<'py>(
             let mut tables: Vec<(u32, Vec<f64>)> = Vec::new();
             let mut out = Vec::with_capacity(states.len());
             for s in &states {
-                let h = horizon_at(w, horizon, t, s);
+                let h = fulcrum_empowerment::dataset::row_horizon(w, horizon, t, s);
                 let v = match method {
                     Method::Dp => {
                         let id = e.state_id(s)? as usize;

@@ -47,6 +47,34 @@ pub(crate) struct Settings<'a> {
     pub gamma: f64,
 }
 
+impl Settings<'_> {
+    /// Refuses a beta or gamma out of range; the horizons, the defaults where none is
+    /// given, refused above [`MAX_HORIZON`].
+    fn checked(&self, hu: u32, he: u32) -> PyResult<(u32, u32)> {
+        if let Some(beta) = self.beta.filter(|b| !b.is_finite()) {
+            return Err(value_error(format!("beta is {beta}: give a finite number")));
+        }
+        if !(self.gamma.is_finite() && (0.0..=1.0).contains(&self.gamma)) {
+            return Err(value_error(format!(
+                "gamma is {}: give a number in [0, 1]",
+                self.gamma
+            )));
+        }
+        let hu = self.horizon_unequipped.unwrap_or(hu);
+        let he = self.horizon_equipped.unwrap_or(he);
+        for h in [hu, he] {
+            if h > MAX_HORIZON {
+                return Err(EngineError::HorizonTooLarge {
+                    h,
+                    max: MAX_HORIZON,
+                })
+                .py_err();
+            }
+        }
+        Ok((hu, he))
+    }
+}
+
 /// One attached intrinsic reward and its per-environment state.
 #[derive(Debug)]
 pub(crate) struct Shaper {
@@ -123,28 +151,10 @@ impl Shaper {
     ) -> PyResult<Shaper> {
         let w = engine.world;
         let form = Intrinsic::from_str(s.form).map_err(value_error)?;
-        if let Some(beta) = s.beta.filter(|b| !b.is_finite()) {
-            return Err(value_error(format!("beta is {beta}: give a finite number")));
-        }
-        if !(s.gamma.is_finite() && (0.0..=1.0).contains(&s.gamma)) {
-            return Err(value_error(format!(
-                "gamma is {}: give a number in [0, 1]",
-                s.gamma
-            )));
-        }
-        let hu = s
-            .horizon_unequipped
-            .unwrap_or(w.empowerment.horizon_unequipped);
-        let he = s.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped);
-        for h in [hu, he] {
-            if h > MAX_HORIZON {
-                return Err(EngineError::HorizonTooLarge {
-                    h,
-                    max: MAX_HORIZON,
-                })
-                .py_err();
-            }
-        }
+        let (hu, he) = s.checked(
+            w.empowerment.horizon_unequipped,
+            w.empowerment.horizon_equipped,
+        )?;
         let space_len = engine.space.len();
         let beta;
         let (values, summary) = if form.uses_empowerment() {
@@ -235,26 +245,7 @@ impl Shaper {
                 family.name
             )));
         }
-        if let Some(beta) = s.beta.filter(|b| !b.is_finite()) {
-            return Err(value_error(format!("beta is {beta}: give a finite number")));
-        }
-        if !(s.gamma.is_finite() && (0.0..=1.0).contains(&s.gamma)) {
-            return Err(value_error(format!(
-                "gamma is {}: give a number in [0, 1]",
-                s.gamma
-            )));
-        }
-        let hu = s.horizon_unequipped.unwrap_or(family.horizon_unequipped);
-        let he = s.horizon_equipped.unwrap_or(family.horizon_equipped);
-        for h in [hu, he] {
-            if h > MAX_HORIZON {
-                return Err(EngineError::HorizonTooLarge {
-                    h,
-                    max: MAX_HORIZON,
-                })
-                .py_err();
-            }
-        }
+        let (hu, he) = s.checked(family.horizon_unequipped, family.horizon_equipped)?;
         let cfg = FamilyConfig {
             tool: s.tool.map(str::to_string),
             horizon_unequipped: hu,

@@ -146,21 +146,12 @@ fn resolve<'w>(w: &'w World, ch: &Channel) -> Result<Resolved<'w>> {
     Ok(Resolved { e, tool, set })
 }
 
-/// The horizon at a state: `--horizon`, else the world's by whether the tool is held.
-fn horizon_for(w: &World, ch: &Channel, tool: ToolSel, s: &State) -> u32 {
-    ch.horizon.unwrap_or(if tool.held(s) {
-        w.empowerment.horizon_equipped
-    } else {
-        w.empowerment.horizon_unequipped
-    })
-}
-
 fn landscape(a: &LandscapeArgs) -> Result<()> {
     let w = world(&a.channel.world)?;
     let r = resolve(&w, &a.channel)?;
     let holding = holding_mask(&w, &a.holding)?;
     let probe = r.e.landscape_state(0, 0, holding);
-    let h = horizon_for(&w, &a.channel, r.tool, &probe);
+    let h = fulcrum_empowerment::dataset::row_horizon(&w, a.channel.horizon, r.tool, &probe);
     let l =
         r.e.landscape(r.tool, &r.set, h, holding, a.channel.method.into())?;
     let tool_name = r.tool.name(&w);
@@ -465,7 +456,7 @@ fn query(a: &QueryArgs) -> Result<()> {
     let mut tables: Vec<(u32, Vec<f64>, Vec<f64>)> = Vec::new();
     let stochastic = w.is_stochastic();
     for (s, (place, _)) in states.iter().zip(&lines) {
-        let h = horizon_for(&w, &a.channel, r.tool, s);
+        let h = fulcrum_empowerment::dataset::row_horizon(&w, a.channel.horizon, r.tool, s);
         let id =
             r.e.state_id(s)
                 .map_err(|e| BadRequest(format!("{place}: {e}")))?;
