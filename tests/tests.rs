@@ -5,5 +5,7 @@ mod experiment;
 #[cfg(feature = "multihost")]
 mod multihost;
 mod service;
+#[cfg(feature = "slurm")]
+mod slurm;
 mod train;
 mod util;

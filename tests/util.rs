@@ -132,3 +132,32 @@ pub fn wait_until(limit: Duration, what: &str, mut f: impl FnMut() -> bool) {
 pub fn is_ready(line: &str) -> bool {
     fulcrum_contracts::lines::ChildLine::says_ready(line)
 }
+
+/// A metrics row's columns that must match bit for bit between two runs of the same
+/// seed (all but the timings).
+pub fn deterministic(r: &fulcrum_learner::metrics::MetricsRow) -> String {
+    let mut r = *r;
+    r.sps = 0.0;
+    r.wall_s = 0.0;
+    r.csv()
+}
+
+/// The policy's weights in a run's latest checkpoint, flat; `world` is the run's world
+/// (a built-in name or a file), which gives the network's shape.
+pub fn weights(run: &Path, world: &str) -> Vec<f32> {
+    let dev = candle_core::Device::Cpu;
+    let (w, _) = fulcrum_world::family::load_world_or_family(world).unwrap();
+    let shape = fulcrum_contracts::config::RunConfig::load(&run.join("config.toml"))
+        .unwrap()
+        .shape(&w);
+    let net = fulcrum_learner::net::Net::new(shape, 99, &dev).unwrap();
+    let mut adam = fulcrum_learner::adam::Adam::new(&net).unwrap();
+    fulcrum_learner::checkpoint::load(&run.join("checkpoints/latest.safetensors"), &net, &mut adam)
+        .unwrap();
+    net.flat().unwrap()
+}
+
+/// Whether two weight vectors are the same bits.
+pub fn same_bits(a: &[f32], b: &[f32]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}

@@ -22,7 +22,7 @@
 //! | [`curve`] | the learning curve drawn when a run ends |
 //! | [`eval`] | a run's policy played greedily or sampled: success, return, length, tool use with 95% intervals |
 //! | [`record`] | episodes of a run's policy as strips of frames |
-//! | [`experiment`] | many runs: scheduling, resuming, aggregation, report |
+//! | [`experiment`] | many runs: scheduling (here, or as a Slurm job array), resuming, aggregation, report |
 //! | [`stats`] | curves over seeds, censored times to solve, tests |
 //! | [`error`] | the library's typed errors: bad requests, interruptions, a child's exit code, failures with their sources ([`Kind`] is what the binary's exit code is decided from) |
 //! | [`host`] | an actor host's supervision: its bridge and actors, restarted as the supervisor restarts its own |

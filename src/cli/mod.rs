@@ -548,7 +548,7 @@ pub struct EvalArgs {
 #[derive(Debug, Args)]
 pub struct ExperimentArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room).
-    #[arg(required_unless_present = "worlds", conflicts_with = "worlds")]
+    #[arg(required_unless_present_any = ["worlds", "collect", "task"], conflicts_with = "worlds")]
     pub world: Option<String>,
     /// Instead of one world, a set of generated worlds nobody wrote: gen:N, or
     /// gen:N:width=W,height=H,tools=T,objects=O,rock=R,seed=S (defaults 12 x 8, 3
@@ -608,6 +608,49 @@ pub struct ExperimentArgs {
     /// Updates over which the success rate is pooled (episode-weighted).
     #[arg(long, default_value_t = 10)]
     pub smooth: usize,
+    /// Where the runs go: local (this machine, --parallel at a time) or slurm (a Slurm
+    /// job array, one task per arm and seed still to run: the script is written to
+    /// DIR/slurm/ and submitted with sbatch; see --dry-run and --collect).
+    #[arg(long, default_value = "local", value_parser = ["local", "slurm"])]
+    pub launcher: String,
+    /// With --launcher slurm: write the array script and print it, submit nothing.
+    #[arg(long)]
+    pub dry_run: bool,
+    /// With --launcher slurm: the partition [default: the cluster's].
+    #[arg(long, value_name = "NAME")]
+    pub slurm_partition: Option<String>,
+    /// With --launcher slurm: each task's time limit, in Slurm's form. A task that
+    /// runs out is not requeued by Slurm: submit the experiment again to continue.
+    #[arg(long, value_name = "TIME", default_value = "4:00:00")]
+    pub slurm_time: String,
+    /// With --launcher slurm: cores per task [default: --actors, each run's share on a
+    /// local machine].
+    #[arg(long, value_name = "N")]
+    pub slurm_cpus: Option<usize>,
+    /// With --launcher slurm: memory per task in Slurm's form (e.g. 4G) [default: the
+    /// cluster's].
+    #[arg(long, value_name = "SIZE")]
+    pub slurm_mem: Option<String>,
+    /// With --launcher slurm: one more #SBATCH option, as written after '#SBATCH '
+    /// (e.g. --sbatch=--account=rl); may be given again.
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    pub sbatch: Vec<String>,
+    /// Make the summary and plots of the experiment in DIR from its finished runs (after
+    /// a Slurm array, or any time), and name the runs that are missing, failed or
+    /// unfinished (exit 1 while any is).
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["world", "worlds", "task"])]
+    pub collect: Option<PathBuf>,
+    /// Train one run of the experiment in DIR, given by --arm and --seed, to its
+    /// budget (resuming from its checkpoint where it has one): what each Slurm array
+    /// task runs.
+    #[arg(long, value_name = "DIR", conflicts_with_all = ["world", "worlds"], requires_all = ["arm", "seed"])]
+    pub task: Option<PathBuf>,
+    /// With --task: the arm.
+    #[arg(long, requires = "task")]
+    pub arm: Option<String>,
+    /// With --task: the seed.
+    #[arg(long, requires = "task")]
+    pub seed: Option<u64>,
     /// More `train` flags for every run, after `--` (e.g. `-- --lr 3e-4`).
     #[arg(last = true, allow_hyphen_values = true)]
     pub train_args: Vec<String>,

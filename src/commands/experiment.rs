@@ -9,7 +9,9 @@ use crate::commands::bad;
 use anyhow::{Context, Result};
 use clap::Parser;
 use fulcrum_run::argv;
-use fulcrum_run::experiment::{prepare_set, Arm, ExperimentRequest, SetRequest, SetWorld};
+use fulcrum_run::experiment::{
+    prepare_set, Arm, ExperimentRequest, SetRequest, SetWorld, SlurmOptions,
+};
 use fulcrum_run::plan::plan;
 use fulcrum_run::process::utc_stamp;
 use fulcrum_run::BadRequest;
@@ -101,6 +103,33 @@ fn with_views(arms: Vec<Arm>, views: &str) -> Result<Vec<Arm>> {
 
 /// `fulcrum experiment`.
 pub fn run(a: &ExperimentArgs) -> Result<()> {
+    if let Some(dir) = &a.collect {
+        return collect(a, dir);
+    }
+    if let Some(dir) = &a.task {
+        let (Some(arm), Some(seed)) = (&a.arm, a.seed) else {
+            return bad("--task needs --arm and --seed");
+        };
+        fulcrum_run::experiment::run_task(dir, arm, seed)?;
+        return Ok(());
+    }
+    let slurm = a.launcher == "slurm";
+    if a.dry_run && !slurm {
+        return bad(
+            "--dry-run goes with --launcher slurm (a local experiment has no script to print)",
+        );
+    }
+    if !slurm
+        && (a.slurm_partition.is_some()
+            || a.slurm_cpus.is_some()
+            || a.slurm_mem.is_some()
+            || !a.sbatch.is_empty())
+    {
+        return bad("the --slurm-* and --sbatch flags go with --launcher slurm");
+    }
+    if slurm && a.worlds.is_some() {
+        return bad("--launcher slurm runs one world's experiment: give the generated set's worlds one at a time (`world generate` writes them)");
+    }
     if a.seeds == 0 {
         return bad("--seeds must be at least 1");
     }
@@ -122,8 +151,94 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
     }
     let world = a.world.clone().unwrap_or_default();
     let req = request(a, &world, &arms, a.out.clone())?;
+    if slurm {
+        return launch(a, &req);
+    }
     let markdown = fulcrum_run::experiment::run(&req)?;
     print!("{markdown}");
+    Ok(())
+}
+
+/// `fulcrum experiment ... --launcher slurm`: the array script written, then submitted
+/// (or printed, with `--dry-run`).
+fn launch(a: &ExperimentArgs, req: &ExperimentRequest) -> Result<()> {
+    let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
+    let l = fulcrum_run::experiment::launch(
+        req,
+        &SlurmOptions {
+            partition: a.slurm_partition.clone(),
+            time: a.slurm_time.clone(),
+            cpus: a.slurm_cpus,
+            mem: a.slurm_mem.clone(),
+            extra: a.sbatch.clone(),
+            submit: !a.dry_run,
+            exe,
+        },
+    )?;
+    let dir = l.dir.display();
+    let Some(script) = &l.script else {
+        eprintln!("fulcrum experiment: every run in {dir} has finished; the summary: fulcrum experiment --collect {dir}");
+        return Ok(());
+    };
+    match &l.job {
+        Some(job) => {
+            eprintln!(
+                "fulcrum experiment: submitted {} array tasks as Slurm job {job} ({})\nwhen they have ended: fulcrum experiment --collect {dir}",
+                l.tasks,
+                script.display()
+            );
+            println!("{job}");
+        }
+        None => {
+            eprintln!(
+                "fulcrum experiment: wrote {} ({} array tasks), not submitted; submit it with: sbatch {}",
+                script.display(),
+                l.tasks,
+                script.display()
+            );
+            print!("{}", l.text);
+        }
+    }
+    Ok(())
+}
+
+/// `fulcrum experiment --collect DIR`.
+fn collect(a: &ExperimentArgs, dir: &std::path::Path) -> Result<()> {
+    if a.world.is_some() || a.worlds.is_some() || a.launcher != "local" || a.dry_run {
+        return bad("--collect DIR takes no world, --worlds, --launcher or --dry-run: the directory says what the experiment is");
+    }
+    if !(a.threshold > 0.0 && a.threshold <= 1.0) {
+        return bad(format!(
+            "--threshold {} must be a success rate in (0, 1]",
+            a.threshold
+        ));
+    }
+    if a.smooth == 0 {
+        return bad("--smooth must be at least 1 update");
+    }
+    let c = fulcrum_run::experiment::collect(dir, a.threshold, a.smooth)?;
+    print!("{}", c.markdown);
+    let total = c.finished + c.missing.len() + c.failed.len() + c.unfinished.len();
+    eprintln!(
+        "fulcrum experiment: {} of {total} runs finished; summary: {}",
+        c.finished,
+        dir.join("summary.md").display()
+    );
+    for (name, why) in &c.failed {
+        eprintln!("  failed: {name}: {why}");
+    }
+    for (name, steps) in &c.unfinished {
+        eprintln!("  unfinished: {name} (checkpoint at {steps} env steps)");
+    }
+    for name in &c.missing {
+        eprintln!("  missing: {name} (never started)");
+    }
+    if c.finished < total {
+        anyhow::bail!(
+            "{} of {total} runs have not finished: the summary pools the finished ones; submit the experiment again (the same command) to run the rest",
+            total - c.finished
+        );
+    }
     Ok(())
 }
 

@@ -10,6 +10,7 @@ use fulcrum_learner::metrics::{read_metrics, MetricsRow, METRICS_COLUMNS};
 use crate::util::{fulcrum, TempDir};
 
 mod locking;
+pub mod tasks;
 
 /// A finished run made by hand: 10 updates of 1024 steps, 10 episodes each, success
 /// `f(i)` at update i, and a checkpoint file (its presence marks the run finished).

@@ -10,7 +10,9 @@ use std::time::{Duration, Instant};
 use fulcrum_learner::metrics::{read_metrics, MetricsRow};
 use iceoryx2::prelude::*;
 
-use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
+use crate::util::{
+    deterministic, fulcrum, pids_with, same_bits, signal, wait_until, weights, TempDir,
+};
 
 mod chaos;
 mod estimates;
@@ -162,14 +164,6 @@ fn two_actors_finish_and_leave_nothing_behind() {
     assert_nothing_left(&namespace_of(&err));
 }
 
-/// The columns that must match bit for bit (all but the timings).
-fn deterministic(r: &MetricsRow) -> String {
-    let mut r = *r;
-    r.sps = 0.0;
-    r.wall_s = 0.0;
-    r.csv()
-}
-
 /// Train `world` for 6 updates without a stop, and again stopped after 3 and resumed:
 /// the same metrics rows (but the timings), weights and evaluations, bit for bit.
 fn resumed_equals_uninterrupted_on(world: &str, tag: &str, extra: &[&str]) {
@@ -212,24 +206,7 @@ fn resumed_equals_uninterrupted_on(world: &str, tag: &str, extra: &[&str]) {
     let rb: Vec<String> = rb.iter().map(deterministic).collect();
     assert_eq!(ra, rb);
     // And the final weights are the same bits.
-    let dev = candle_core::Device::Cpu;
-    let (w, _) = fulcrum_world::family::load_world_or_family(world).unwrap();
-    let shape = fulcrum_contracts::config::RunConfig::load(&a.join("config.toml"))
-        .unwrap()
-        .shape(&w);
-    let flat = |dir: &Path| {
-        let net = fulcrum_learner::net::Net::new(shape, 99, &dev).unwrap();
-        let mut adam = fulcrum_learner::adam::Adam::new(&net).unwrap();
-        fulcrum_learner::checkpoint::load(
-            &dir.join("checkpoints/latest.safetensors"),
-            &net,
-            &mut adam,
-        )
-        .unwrap();
-        net.flat().unwrap()
-    };
-    let (fa, fb) = (flat(&a), flat(&b));
-    assert!(fa.iter().zip(&fb).all(|(x, y)| x.to_bits() == y.to_bits()));
+    assert!(same_bits(&weights(&a, world), &weights(&b, world)));
     // Periodic evaluations (updates 2, 4, 6): the same rows, none twice.
     let evals = |dir: &Path| std::fs::read_to_string(dir.join("eval.csv")).ok();
     assert_eq!(evals(&a), evals(&b));

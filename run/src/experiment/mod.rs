@@ -22,6 +22,9 @@
 //! over, and more seeds or arms may be added. Changing the world, the budget or an
 //! arm's settings under the same directory is refused.
 //!
+//! With `--launcher slurm` the pairs run as a Slurm job array instead ([`launch`],
+//! [`run_task`], [`collect`]: see the `slurm` module).
+//!
 //! The statistics are [`crate::stats`]: episode-pooled success over a trailing
 //! window of `--smooth` updates, a grid of 200 intervals over the budget, the sample
 //! standard deviation over seeds, steps to `--threshold`, the area under the success
@@ -31,9 +34,11 @@
 mod report;
 mod schedule;
 mod set;
+mod slurm;
 mod summary;
 
 pub use set::{prepare_set, run_set, SetDir, SetRequest, SetWorld};
+pub use slurm::{collect, launch, run_task, Collected, Launch, SlurmOptions, TaskOutcome};
 
 use std::path::{Path, PathBuf};
 
@@ -216,8 +221,46 @@ struct Done {
     dir: PathBuf,
 }
 
-/// [`run`], with the summary itself and the runs that failed.
-fn run_one(a: &ExperimentRequest) -> Result<Done> {
+/// An experiment directory made ready under its lock: the spec merged with the
+/// directory's own and written, and the pairs of this command.
+struct Prepared {
+    dir: PathBuf,
+    spec: Spec,
+    jobs: Vec<Job>,
+    lock: crate::lock::DirLock,
+}
+
+/// The pair `(arm, seed)` of the experiment in `dir`: its run directory and log.
+fn job(dir: &Path, spec: &Spec, arm: usize, seed: u64) -> Job {
+    let name = &spec.arms[arm].name;
+    Job {
+        arm,
+        seed,
+        dir: dir.join("runs").join(name).join(format!("seed-{seed}")),
+        log: dir.join("logs").join(format!("{name}-seed-{seed}.log")),
+    }
+}
+
+/// `experiment.toml` of `dir`, in this version's terms (None where there is none).
+fn read_spec(dir: &Path) -> Result<Option<Spec>> {
+    let spec_path = dir.join("experiment.toml");
+    if !spec_path.exists() {
+        return Ok(None);
+    }
+    let old: Spec = std::fs::read_to_string(&spec_path)
+        .ok()
+        .and_then(|t| toml::from_str(&t).ok())
+        .ok_or_else(|| {
+            BadRequest(format!(
+                "{} is not an experiment file this version can read",
+                spec_path.display()
+            ))
+        })?;
+    Ok(Some(old.upgraded()))
+}
+
+/// Creates (or checks and extends) the experiment directory of `a`.
+fn prepare(a: &ExperimentRequest) -> Result<Prepared> {
     let arms = a.arms.clone();
     let world_name = &a.world_name;
     let dir = a.out.clone().unwrap_or_else(|| {
@@ -237,18 +280,9 @@ fn run_one(a: &ExperimentRequest) -> Result<Done> {
     let spec_path = dir.join("experiment.toml");
     // The directory belongs to this invocation (and the runs it starts) from here on.
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let _lock = crate::lock::lock_for_run(&dir)?;
-    if spec_path.exists() {
-        let old: Spec = std::fs::read_to_string(&spec_path)
-            .ok()
-            .and_then(|t| toml::from_str(&t).ok())
-            .ok_or_else(|| {
-                BadRequest(format!(
-                    "{} is not an experiment file this version can read",
-                    spec_path.display()
-                ))
-            })?;
-        spec = merge(old.upgraded(), spec, &spec_path)?;
+    let lock = crate::lock::lock_for_run(&dir)?;
+    if let Some(old) = read_spec(&dir)? {
+        spec = merge(old, spec, &spec_path)?;
     }
     std::fs::create_dir_all(dir.join("logs"))
         .with_context(|| format!("cannot create {}", dir.display()))?;
@@ -270,19 +304,27 @@ fn run_one(a: &ExperimentRequest) -> Result<Done> {
             .position(|x| x.name == arm.name)
             .unwrap_or(0);
         for seed in 1..=a.seeds {
-            jobs.push(Job {
-                arm: ai,
-                seed,
-                dir: dir
-                    .join("runs")
-                    .join(&arm.name)
-                    .join(format!("seed-{seed}")),
-                log: dir
-                    .join("logs")
-                    .join(format!("{}-seed-{seed}.log", arm.name)),
-            });
+            jobs.push(job(&dir, &spec, ai, seed));
         }
     }
+    Ok(Prepared {
+        dir,
+        spec,
+        jobs,
+        lock,
+    })
+}
+
+/// [`run`], with the summary itself and the runs that failed.
+fn run_one(a: &ExperimentRequest) -> Result<Done> {
+    let arms = a.arms.clone();
+    let world_name = &a.world_name;
+    let Prepared {
+        dir,
+        spec,
+        jobs,
+        lock: _lock,
+    } = prepare(a)?;
     let cpus = allowed_cpus();
     let parallel = a.parallel.unwrap_or((cpus.len() / a.actors).max(1)).max(1);
     let share = (cpus.len() / parallel).max(1);

@@ -12,7 +12,6 @@ use fulcrum_learner::paths::RunPaths;
 
 use super::{state, train_args, Job, Spec, State};
 use crate::error::Interrupted;
-use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping};
 use crate::progress::Progress;
 
@@ -59,14 +58,10 @@ pub(super) fn schedule(
             if st == State::Fresh && job.dir.exists() {
                 // A run that never wrote a checkpoint has nothing to continue from;
                 // cleared under its lock, never while another invocation holds it.
-                match DirLock::acquire(&job.dir) {
-                    Ok(_held) => std::fs::remove_dir_all(&job.dir)
-                        .with_context(|| format!("cannot clear {}", job.dir.display()))?,
-                    Err(e) => {
-                        progress.note(&format!("{} not started: {e}", name(job)));
-                        failed.push(name(job));
-                        continue;
-                    }
+                if let Err(e) = super::slurm::clear_fresh(job) {
+                    progress.note(&format!("{} not started: {e}", name(job)));
+                    failed.push(name(job));
+                    continue;
                 }
             }
             if let Some(parent) = job.dir.parent() {

@@ -1,0 +1,443 @@
+//! Experiments on a Slurm cluster: the pairs still to run as one job array, each task a
+//! pair trained exactly as a local experiment trains it, and the summary collected
+//! once the tasks have ended.
+//!
+//! ```text
+//! DIR/experiment.toml                 as for a local experiment (the same checks)
+//! DIR/slurm/array-<time>.sbatch       the array script: task i = (ARMS[i], SEEDS[i])
+//! DIR/slurm/status/<arm>-seed-<k>     a task's failure (exit status, time); removed
+//!                                     when the pair finishes
+//! DIR/logs/<arm>-seed-<k>.log         the run's output (appended across requeues)
+//! DIR/logs/slurm-<job>_<task>.out     what Slurm saw of the task
+//! ```
+//!
+//! Each array task runs `fulcrum experiment --task DIR --arm A --seed K`: a finished pair
+//! is left alone, an interrupted one continues from its checkpoint (`train --resume`),
+//! one that never wrote a checkpoint starts over, all with the local scheduler's own
+//! `train` command line, so a pair's curve is the same bit for bit wherever it ran
+//! (synchronous PPO is deterministic given its seed). A task writes only its run
+//! directory, its log and its status file. The script asks Slurm to requeue a task that
+//! is preempted or whose node fails (`--requeue`); SIGTERM before the kill makes the run
+//! write a checkpoint first, and the requeued task continues from the newest one.
+//!
+//! `fulcrum experiment --collect DIR` aggregates what has finished into the summary and
+//! plots, as the local experiment does, and names every pair that is missing, failed
+//! or unfinished.
+
+use std::os::unix::process::CommandExt;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use crate::error::{bad, BadRequest, Context, Result};
+use crate::lock::DirLock;
+use crate::process::{install_signal_handlers, stopping, utc_stamp};
+
+use super::schedule::last_steps;
+use super::{job, prepare, read_spec, state, train_args, ExperimentRequest, Job, Spec, State};
+
+/// What the array script asks of Slurm.
+#[derive(Debug, Clone)]
+pub struct SlurmOptions {
+    /// `--partition` (the cluster's default where None).
+    pub partition: Option<String>,
+    /// `--time` of each task (Slurm's formats: `MM`, `HH:MM:SS`, `D-HH:MM`, ...).
+    pub time: String,
+    /// `--cpus-per-task` (default: the run's actors, as a local experiment gives each run).
+    pub cpus: Option<usize>,
+    /// `--mem` of each task (the cluster's default where None).
+    pub mem: Option<String>,
+    /// More `#SBATCH` options, each as written after `#SBATCH ` (e.g. `--account=rl`).
+    pub extra: Vec<String>,
+    /// Submit the script with `sbatch` (false: write it and print it only).
+    pub submit: bool,
+    /// The `fulcrum` executable the tasks run.
+    pub exe: PathBuf,
+}
+
+/// What [`launch`] did.
+#[derive(Debug, Clone)]
+pub struct Launch {
+    /// The experiment directory (absolute).
+    pub dir: PathBuf,
+    /// The array script, None when every pair had finished.
+    pub script: Option<PathBuf>,
+    /// The script's text.
+    pub text: String,
+    /// Array tasks (pairs still to run).
+    pub tasks: usize,
+    /// The array's job id, when submitted.
+    pub job: Option<String>,
+}
+
+/// The experiment directory made ready, then the array script of its unfinished pairs
+/// written and (unless `o.submit` is false) submitted with `sbatch --parsable`.
+pub fn launch(a: &ExperimentRequest, o: &SlurmOptions) -> Result<Launch> {
+    if let Some(c) = o.cpus {
+        if c == 0 {
+            return bad("--slurm-cpus must be at least 1");
+        }
+    }
+    for (flag, v) in [
+        ("--slurm-time", Some(&o.time)),
+        ("--slurm-mem", o.mem.as_ref()),
+    ]
+    .into_iter()
+    .chain([("--slurm-partition", o.partition.as_ref())])
+    {
+        if let Some(v) = v {
+            if v.is_empty() || v.chars().any(|c| c.is_whitespace() || c == '\'') {
+                return bad(format!(
+                    "{flag} '{v}' is not a Slurm value (no spaces or quotes)"
+                ));
+            }
+        }
+    }
+    if let Some(e) = o
+        .extra
+        .iter()
+        .find(|e| !e.starts_with('-') || e.contains('\n'))
+    {
+        return bad(format!(
+            "--sbatch '{e}' is not an sbatch option (write it as after '#SBATCH ', e.g. --account=rl)"
+        ));
+    }
+    let prepared = prepare(a)?;
+    let dir = std::path::absolute(&prepared.dir)
+        .with_context(|| format!("cannot resolve {}", prepared.dir.display()))?;
+    let cwd = std::env::current_dir().context("cannot read the working directory")?;
+    let todo: Vec<&Job> = prepared
+        .jobs
+        .iter()
+        .filter(|j| state(&j.dir, prepared.spec.steps) != State::Done)
+        .collect();
+    if todo.is_empty() {
+        return Ok(Launch {
+            dir,
+            script: None,
+            text: String::new(),
+            tasks: 0,
+            job: None,
+        });
+    }
+    let slurm_dir = dir.join("slurm");
+    std::fs::create_dir_all(&slurm_dir)
+        .with_context(|| format!("cannot create {}", slurm_dir.display()))?;
+    let path = slurm_dir.join(format!("array-{}.sbatch", utc_stamp()));
+    let text = script(
+        &prepared.spec,
+        &todo,
+        (&dir, &path, &cwd),
+        o,
+        o.cpus.unwrap_or(prepared.spec.actors),
+    );
+    fulcrum_contracts::fsio::write_atomic(&path, text.as_bytes())
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    let mut job = None;
+    if o.submit {
+        let out = Command::new("sbatch")
+            .arg("--parsable")
+            .arg(&path)
+            .stdin(Stdio::null())
+            .output()
+            .map_err(|e| {
+                BadRequest(format!(
+                    "cannot run sbatch ({e}): is Slurm's client on PATH? --dry-run writes {} without submitting it",
+                    path.display()
+                ))
+            })?;
+        if !out.status.success() {
+            crate::fail!(
+                "sbatch refused {}: {}",
+                path.display(),
+                String::from_utf8_lossy(&out.stderr).trim()
+            );
+        }
+        let id = String::from_utf8_lossy(&out.stdout).trim().to_string();
+        // `--parsable` prints `id` or `id;cluster`.
+        job = Some(id.split(';').next().unwrap_or("").to_string());
+    }
+    Ok(Launch {
+        dir,
+        script: Some(path),
+        text,
+        tasks: todo.len(),
+        job,
+    })
+}
+
+/// `s` quoted for bash (single quotes; a quote inside as `'\''`).
+fn quote(s: &str) -> String {
+    format!("'{}'", s.replace('\'', r"'\''"))
+}
+
+/// The array script: one task per pair of `todo`.
+fn script(
+    spec: &Spec,
+    todo: &[&Job],
+    (dir, path, cwd): (&Path, &Path, &Path),
+    o: &SlurmOptions,
+    cpus: usize,
+) -> String {
+    let d = dir.display().to_string();
+    let mut t = String::from("#!/bin/bash\n");
+    t += &format!(
+        "# fulcrum experiment on Slurm: {} (arm, seed) pairs of {}, one array task each.\n\
+         # Edit the #SBATCH lines as your cluster needs, then submit with\n\
+         #   sbatch {}\n\
+         # A task that Slurm requeues (preemption, a node failure) continues its run from\n\
+         # its checkpoint. Once every task has ended:\n\
+         #   fulcrum experiment --collect {}\n",
+        todo.len(),
+        spec.world,
+        quote(&path.display().to_string()),
+        quote(&d),
+    );
+    let name: String = spec
+        .world
+        .rsplit('/')
+        .next()
+        .unwrap_or("world")
+        .chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect();
+    let mut lines = vec![
+        format!("--job-name=fulcrum-{name}"),
+        format!("--array=0-{}", todo.len() - 1),
+        "--ntasks=1".to_string(),
+        format!("--cpus-per-task={cpus}"),
+        format!("--time={}", o.time),
+        "--requeue".to_string(),
+        "--open-mode=append".to_string(),
+        format!("--output={d}/logs/slurm-%A_%a.out"),
+        format!("--chdir={}", cwd.display()),
+    ];
+    if let Some(p) = &o.partition {
+        lines.push(format!("--partition={p}"));
+    }
+    if let Some(m) = &o.mem {
+        lines.push(format!("--mem={m}"));
+    }
+    lines.extend(o.extra.iter().cloned());
+    for l in lines {
+        t += &format!("#SBATCH {l}\n");
+    }
+    let arms: Vec<String> = todo.iter().map(|j| quote(&spec.arms[j.arm].name)).collect();
+    let seeds: Vec<String> = todo.iter().map(|j| j.seed.to_string()).collect();
+    t += "set -eu\n";
+    t += &format!("ARMS=({})\n", arms.join(" "));
+    t += &format!("SEEDS=({})\n", seeds.join(" "));
+    t += "i=${SLURM_ARRAY_TASK_ID:?submit this script with sbatch, which sets SLURM_ARRAY_TASK_ID}\n";
+    t += &format!(
+        "exec {} experiment --task {} --arm \"${{ARMS[$i]}}\" --seed \"${{SEEDS[$i]}}\"\n",
+        quote(&o.exe.display().to_string()),
+        quote(&d)
+    );
+    t
+}
+
+/// The status file of a pair.
+fn status_file(dir: &Path, spec: &Spec, j: &Job) -> PathBuf {
+    dir.join("slurm")
+        .join("status")
+        .join(format!("{}-seed-{}", spec.arms[j.arm].name, j.seed))
+}
+
+/// How [`run_task`] left its pair.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TaskOutcome {
+    /// It had finished before.
+    AlreadyDone,
+    /// It finished now.
+    Finished,
+}
+
+/// One pair of the experiment in `dir`, trained (or resumed) to the budget: what each
+/// array task runs. SIGTERM and SIGINT are passed on to the run, which checkpoints and
+/// stops; a failure is recorded in the pair's status file and returned.
+pub fn run_task(dir: &Path, arm: &str, seed: u64) -> Result<TaskOutcome> {
+    let Some(spec) = read_spec(dir)? else {
+        return bad(format!(
+            "{} is not an experiment directory (it has no experiment.toml)",
+            dir.display()
+        ));
+    };
+    let Some(ai) = spec.arms.iter().position(|a| a.name == arm) else {
+        let names: Vec<&str> = spec.arms.iter().map(|a| a.name.as_str()).collect();
+        return bad(format!(
+            "{} has no arm '{arm}' (its arms: {})",
+            dir.display(),
+            names.join(", ")
+        ));
+    };
+    if !(1..=spec.seeds).contains(&seed) {
+        return bad(format!(
+            "{} has seeds 1 to {}, not {seed}",
+            dir.display(),
+            spec.seeds
+        ));
+    }
+    let j = job(dir, &spec, ai, seed);
+    let status = status_file(dir, &spec, &j);
+    let st = state(&j.dir, spec.steps);
+    if st == State::Done {
+        let _ = std::fs::remove_file(&status);
+        eprintln!(
+            "fulcrum experiment: {arm}/seed-{seed} had finished ({})",
+            j.dir.display()
+        );
+        return Ok(TaskOutcome::AlreadyDone);
+    }
+    install_signal_handlers();
+    let result = train_pair(&spec, &j, st);
+    match &result {
+        Ok(()) => {
+            let _ = std::fs::remove_file(&status);
+        }
+        Err(e) => {
+            if let Some(parent) = status.parent() {
+                let _ = std::fs::create_dir_all(parent);
+            }
+            let text = format!("{}\t{e}\n", utc_stamp());
+            let _ = fulcrum_contracts::fsio::write_atomic(&status, text.as_bytes());
+        }
+    }
+    result.map(|()| TaskOutcome::Finished)
+}
+
+/// A pair that never wrote a checkpoint cleared (under its lock) so that it starts over.
+pub(super) fn clear_fresh(j: &Job) -> Result<()> {
+    match DirLock::acquire(&j.dir) {
+        Ok(_held) => Ok(std::fs::remove_dir_all(&j.dir)
+            .with_context(|| format!("cannot clear {}", j.dir.display()))?),
+        Err(e) => bad(e.to_string()),
+    }
+}
+
+/// `train` on the pair, its output appended to the pair's log, until it exits.
+fn train_pair(spec: &Spec, j: &Job, st: State) -> Result<()> {
+    if st == State::Fresh && j.dir.exists() {
+        clear_fresh(j)?;
+    }
+    if let Some(parent) = j.dir.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    if let Some(parent) = j.log.parent() {
+        std::fs::create_dir_all(parent)
+            .with_context(|| format!("cannot create {}", parent.display()))?;
+    }
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&j.log)
+        .with_context(|| format!("cannot open {}", j.log.display()))?;
+    let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
+    let resume = st == State::Partial;
+    let name = format!("{}/seed-{}", spec.arms[j.arm].name, j.seed);
+    eprintln!(
+        "fulcrum experiment: {} {name} (log {})",
+        if resume { "resuming" } else { "starting" },
+        j.log.display()
+    );
+    let mut cmd = Command::new(exe);
+    cmd.args(train_args(spec, &spec.arms[j.arm], j, resume))
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().context("cannot share the log file")?)
+        .stderr(log);
+    // SAFETY: only async-signal-safe calls (prctl) between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM);
+            Ok(())
+        });
+    }
+    let mut child = cmd
+        .spawn()
+        .with_context(|| format!("cannot start the run {name}"))?;
+    let mut passed_on = false;
+    let status = loop {
+        if let Some(s) = child.try_wait().context("cannot wait for the run")? {
+            break s;
+        }
+        if stopping() && !passed_on {
+            // SAFETY: kill(2) on our own child's pid.
+            unsafe {
+                libc::kill(child.id() as libc::pid_t, libc::SIGTERM);
+            }
+            passed_on = true;
+        }
+        std::thread::sleep(Duration::from_millis(200));
+    };
+    if status.success() && state(&j.dir, spec.steps) == State::Done {
+        eprintln!("fulcrum experiment: finished {name}");
+        return Ok(());
+    }
+    crate::fail!(
+        "the run {name} {} ({status}) at {} of {} env steps; see {}",
+        if passed_on { "was stopped" } else { "failed" },
+        last_steps(&j.dir),
+        spec.steps,
+        j.log.display()
+    )
+}
+
+/// Where each pair of a collected experiment stands.
+#[derive(Debug, Clone, Default)]
+pub struct Collected {
+    /// The summary's Markdown.
+    pub markdown: String,
+    /// Pairs that finished.
+    pub finished: usize,
+    /// Pairs with no run directory (never started).
+    pub missing: Vec<String>,
+    /// Pairs whose last task failed: name and what its status file says.
+    pub failed: Vec<(String, String)>,
+    /// Pairs with a checkpoint short of the budget: name and env steps reached.
+    pub unfinished: Vec<(String, u64)>,
+}
+
+/// The summary and plots of the experiment in `dir` from every finished pair, as a
+/// local experiment writes them, and where the other pairs stand.
+pub fn collect(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
+    let Some(spec) = read_spec(dir)? else {
+        return bad(format!(
+            "{} is not an experiment directory (it has no experiment.toml)",
+            dir.display()
+        ));
+    };
+    let _lock = crate::lock::lock_for_run(dir)?;
+    let mut jobs = Vec::new();
+    for ai in 0..spec.arms.len() {
+        for seed in 1..=spec.seeds {
+            jobs.push(job(dir, &spec, ai, seed));
+        }
+    }
+    std::fs::create_dir_all(dir.join("plots"))
+        .with_context(|| format!("cannot create {}", dir.join("plots").display()))?;
+    let summary = super::summary::aggregate(&spec, &spec.arms, &jobs, threshold, smooth)?;
+    let markdown = super::report::write(&summary, dir)?;
+    let mut c = Collected {
+        markdown,
+        ..Collected::default()
+    };
+    for j in &jobs {
+        let name = format!("{}/seed-{}", spec.arms[j.arm].name, j.seed);
+        let status = std::fs::read_to_string(status_file(dir, &spec, j)).ok();
+        match state(&j.dir, spec.steps) {
+            State::Done => c.finished += 1,
+            _ if status.is_some() => c
+                .failed
+                .push((name, status.unwrap_or_default().trim().replace('\t', ": "))),
+            State::Partial => c.unfinished.push((name, last_steps(&j.dir))),
+            State::Fresh => c.missing.push(name),
+        }
+    }
+    Ok(c)
+}
