@@ -136,15 +136,7 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
     if a.actors == 0 {
         return bad("--actors must be at least 1");
     }
-    if !(a.threshold > 0.0 && a.threshold <= 1.0) {
-        return bad(format!(
-            "--threshold {} must be a success rate in (0, 1]",
-            a.threshold
-        ));
-    }
-    if a.smooth == 0 {
-        return bad("--smooth must be at least 1 update");
-    }
+    check_statistics(a)?;
     let arms = arms(a)?;
     if let Some(set) = &a.worlds {
         return run_set(a, set, arms);
@@ -202,11 +194,8 @@ fn launch(a: &ExperimentArgs, req: &ExperimentRequest) -> Result<()> {
     Ok(())
 }
 
-/// `fulcrum experiment --collect DIR`.
-fn collect(a: &ExperimentArgs, dir: &std::path::Path) -> Result<()> {
-    if a.world.is_some() || a.worlds.is_some() || a.launcher != "local" || a.dry_run {
-        return bad("--collect DIR takes no world, --worlds, --launcher or --dry-run: the directory says what the experiment is");
-    }
+/// `--threshold` and `--smooth`, which the summary uses.
+fn check_statistics(a: &ExperimentArgs) -> Result<()> {
     if !(a.threshold > 0.0 && a.threshold <= 1.0) {
         return bad(format!(
             "--threshold {} must be a success rate in (0, 1]",
@@ -216,6 +205,15 @@ fn collect(a: &ExperimentArgs, dir: &std::path::Path) -> Result<()> {
     if a.smooth == 0 {
         return bad("--smooth must be at least 1 update");
     }
+    Ok(())
+}
+
+/// `fulcrum experiment --collect DIR`.
+fn collect(a: &ExperimentArgs, dir: &std::path::Path) -> Result<()> {
+    if a.world.is_some() || a.worlds.is_some() || a.launcher != "local" || a.dry_run {
+        return bad("--collect DIR takes no world, --worlds, --launcher or --dry-run: the directory says what the experiment is");
+    }
+    check_statistics(a)?;
     let c = fulcrum_run::experiment::collect(dir, a.threshold, a.smooth)?;
     print!("{}", c.markdown);
     let total = c.finished + c.missing.len() + c.failed.len() + c.unfinished.len();
