@@ -12,7 +12,7 @@ use std::time::Duration;
 
 use fulcrum_learner::metrics::read_metrics;
 
-use crate::experiment::tasks::{same_experiment, script_pairs, EXPERIMENT};
+use crate::experiment::tasks::{collected_equals_local, script_pairs, EXPERIMENT};
 use crate::util::{fulcrum, pids_with, wait_until, TempDir};
 
 /// A running single-node cluster; stopped when dropped.
@@ -152,25 +152,5 @@ fn an_array_survives_a_killed_task_and_collects_to_the_local_result() {
     );
     assert!(log.contains("finished baseline/seed-1"), "{log}");
 
-    let c = fulcrum()
-        .args(["experiment", "--collect"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&c.stderr);
-    assert!(c.status.success(), "{err}");
-    assert!(err.contains("4 of 4 runs finished"), "{err}");
-
-    let o = fulcrum()
-        .args(EXPERIMENT)
-        .arg("--out")
-        .arg(&local)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(
-        String::from_utf8_lossy(&c.stdout),
-        String::from_utf8_lossy(&o.stdout)
-    );
-    same_experiment(&dir, &local);
+    collected_equals_local(&dir, &local);
 }

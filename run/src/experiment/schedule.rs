@@ -64,22 +64,8 @@ pub(super) fn schedule(
                     continue;
                 }
             }
-            if let Some(parent) = job.dir.parent() {
-                std::fs::create_dir_all(parent)
-                    .with_context(|| format!("cannot create {}", parent.display()))?;
-            }
-            let log = std::fs::OpenOptions::new()
-                .create(true)
-                .append(true)
-                .open(&job.log)
-                .with_context(|| format!("cannot open {}", job.log.display()))?;
-            let args = train_args(spec, &spec.arms[job.arm], job, st == State::Partial);
-            let mut cmd = Command::new(&exe);
-            cmd.args(&args)
-                .stdin(Stdio::null())
-                .stdout(log.try_clone().context("cannot share the log file")?)
-                .stderr(log)
-                .process_group(0);
+            let mut cmd = train_command(&exe, spec, job, st == State::Partial)?;
+            cmd.process_group(0);
             let parent = std::process::id();
             // SAFETY: only async-signal-safe calls (sched_setaffinity, prctl, getppid,
             // _exit-free checks) between fork and exec.
@@ -166,6 +152,25 @@ pub(super) fn schedule(
         .into());
     }
     Ok(failed)
+}
+
+/// The `train` command of a pair (new, or resuming from its checkpoint), its output
+/// appended to the pair's log; the run's parent and log directories made.
+pub(super) fn train_command(exe: &Path, spec: &Spec, job: &Job, resume: bool) -> Result<Command> {
+    for d in [job.dir.parent(), job.log.parent()].into_iter().flatten() {
+        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+    }
+    let log = std::fs::OpenOptions::new()
+        .create(true)
+        .append(true)
+        .open(&job.log)
+        .with_context(|| format!("cannot open {}", job.log.display()))?;
+    let mut cmd = Command::new(exe);
+    cmd.args(train_args(spec, &spec.arms[job.arm], job, resume))
+        .stdin(Stdio::null())
+        .stdout(log.try_clone().context("cannot share the log file")?)
+        .stderr(log);
+    Ok(cmd)
 }
 
 /// Env steps of a run's last metrics row (reads only the file's tail).

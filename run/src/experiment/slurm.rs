@@ -33,8 +33,8 @@ use crate::error::{bad, BadRequest, Context, Result};
 use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping, utc_stamp};
 
-use super::schedule::last_steps;
-use super::{job, prepare, read_spec, state, train_args, ExperimentRequest, Job, Spec, State};
+use super::schedule::{last_steps, train_command};
+use super::{job, prepare, read_spec, state, ExperimentRequest, Job, Spec, State};
 
 /// What the array script asks of Slurm.
 #[derive(Debug, Clone)]
@@ -325,32 +325,15 @@ fn train_pair(spec: &Spec, j: &Job, st: State) -> Result<()> {
     if st == State::Fresh && j.dir.exists() {
         clear_fresh(j)?;
     }
-    if let Some(parent) = j.dir.parent() {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("cannot create {}", parent.display()))?;
-    }
-    if let Some(parent) = j.log.parent() {
-        std::fs::create_dir_all(parent)
-            .with_context(|| format!("cannot create {}", parent.display()))?;
-    }
-    let log = std::fs::OpenOptions::new()
-        .create(true)
-        .append(true)
-        .open(&j.log)
-        .with_context(|| format!("cannot open {}", j.log.display()))?;
     let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
     let resume = st == State::Partial;
     let name = format!("{}/seed-{}", spec.arms[j.arm].name, j.seed);
+    let mut cmd = train_command(&exe, spec, j, resume)?;
     eprintln!(
         "fulcrum experiment: {} {name} (log {})",
         if resume { "resuming" } else { "starting" },
         j.log.display()
     );
-    let mut cmd = Command::new(exe);
-    cmd.args(train_args(spec, &spec.arms[j.arm], j, resume))
-        .stdin(Stdio::null())
-        .stdout(log.try_clone().context("cannot share the log file")?)
-        .stderr(log);
     // SAFETY: only async-signal-safe calls (prctl) between fork and exec.
     unsafe {
         cmd.pre_exec(|| {
