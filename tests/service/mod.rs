@@ -367,6 +367,70 @@ fn sigint_and_sigterm_stop_the_service_cleanly() {
     }
 }
 
+/// Attach to `pid` as a tracer, interrupt every thread it has, wait for each stop and
+/// detach again: what `gdb -p`, `strace -p` and `perf trace -p` do to a process.
+fn trace_and_detach(pid: i32) {
+    let tids: Vec<i32> = std::fs::read_dir(format!("/proc/{pid}/task"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().parse().unwrap())
+        .collect();
+    for &tid in &tids {
+        // SAFETY: ptrace on a thread of our own child; arguments as the man page says.
+        unsafe {
+            let seized = libc::ptrace(libc::PTRACE_SEIZE, tid, 0usize, 0usize);
+            assert_eq!(
+                seized,
+                0,
+                "PTRACE_SEIZE {tid}: {}",
+                std::io::Error::last_os_error()
+            );
+            assert_eq!(libc::ptrace(libc::PTRACE_INTERRUPT, tid, 0usize, 0usize), 0);
+            let mut st = 0;
+            assert_eq!(libc::waitpid(tid, &mut st, libc::__WALL), tid);
+        }
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    for &tid in &tids {
+        // SAFETY: as above; the thread is in a ptrace stop.
+        let r = unsafe { libc::ptrace(libc::PTRACE_DETACH, tid, 0usize, 0usize) };
+        assert_eq!(
+            r,
+            0,
+            "PTRACE_DETACH {tid}: {}",
+            std::io::Error::last_os_error()
+        );
+    }
+}
+
+#[test]
+fn a_debugger_attaching_and_leaving_does_not_stop_the_service() {
+    // The attach interrupts the service's wait with EINTR, which iceoryx2's wait set
+    // reports as an interrupt as if SIGINT had come: the service must serve on.
+    let ns = namespace("ptrace");
+    let w = load_world("room").unwrap();
+    let mut serve = Serve::start("room", &ns, &[]);
+    let mut c = Client::connect(&ns, &w, Duration::from_secs(10)).unwrap();
+    c.timeout = Duration::from_secs(10);
+    std::thread::sleep(Duration::from_millis(300)); // the service is asleep in its wait
+    trace_and_detach(serve.child.id() as i32);
+    std::thread::sleep(Duration::from_millis(300));
+    assert!(
+        serve.child.try_wait().unwrap().is_none(),
+        "the service exited"
+    );
+    assert_eq!(
+        c.values(Ask::Lookup, &[w.initial], 1).unwrap().status[0],
+        item::OK
+    );
+    // And SIGINT still stops it cleanly.
+    drop(c);
+    serve.signal("-INT");
+    let st = serve
+        .wait(Duration::from_secs(5))
+        .expect("stops within 5 s");
+    assert!(st.success(), "{st:?}");
+}
+
 #[test]
 fn query_service_from_the_cli_equals_the_local_query() {
     let ns = namespace("cli");

@@ -2,7 +2,7 @@
 //!
 //! A request is loaned in shared memory, filled in place and sent; the client then
 //! wakes the server's listener. Up to [`MAX_IN_FLIGHT`] requests may be outstanding;
-//! their answers are collected in order, each by spinning a short while and then
+//! their answers are collected in order, each by polling a short while and then
 //! blocking on the client's own listener, which the server notifies.
 
 use std::collections::VecDeque;
@@ -334,7 +334,8 @@ impl Client {
         Ok(n)
     }
 
-    /// Wait for the oldest request's answer: spin `spin`, then block on the listener,
+    /// Wait for the oldest request's answer: poll `spin` (yielding the core between looks:
+    /// the service may be waiting for it), then block on the listener,
     /// checking every 100 ms that the service is still there.
     fn receive_one(&mut self) -> Result<(Box<EmpResponse>, usize), ClientError> {
         let Some((pending, seq)) = self.in_flight.pop_front() else {
@@ -360,7 +361,7 @@ impl Client {
                 return Err(ClientError::Timeout(self.timeout));
             }
             if waited < self.spin {
-                std::hint::spin_loop();
+                std::thread::yield_now();
                 continue;
             }
             // Block on our listener; wake now and then to notice a dead service.

@@ -13,9 +13,13 @@
 //!
 //! Wake-ups: pub/sub and request-response ports have no file descriptor, so requests
 //! and responses are paired with event services (iceoryx2's request-response and
-//! pub/sub ports cannot be waited on by themselves). Each side first spins a short
-//! bounded while (polling, no syscall) for the answer, then blocks on its listener: a
-//! fast answer costs no wake-up, an idle process burns no core.
+//! pub/sub ports cannot be waited on by themselves). Each side first polls a short
+//! bounded while for the answer, then blocks on its listener: a fast answer costs no
+//! wake-up, an idle process burns no core. The poll yields the core between looks
+//! rather than spinning: on small machines the scheduler often wakes the service on the
+//! very core its client polls on, and a spinning client would hold the service off until
+//! its poll ran out (BENCHMARKS.md, "The empowerment service", has the figures and the
+//! variants tried).
 //!
 //! A bad request never stops the service: it gets an error status (see
 //! [`fulcrum_contracts::msg::status`]), and states that are not in the state space get

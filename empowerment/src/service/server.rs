@@ -89,20 +89,31 @@ pub fn serve_with(
         keys: HashMap::new(),
         failure: None,
     };
-    let result = waitset.wait_and_process(|id| {
-        if stop_signal() != 0 {
-            return CallbackProgression::Stop;
+    let result = loop {
+        let result = waitset.wait_and_process(|id| {
+            if stop_signal() != 0 {
+                return CallbackProgression::Stop;
+            }
+            if id.has_event_from(&stop_check) {
+                return CallbackProgression::Continue;
+            }
+            if id.has_event_from(&tick) {
+                clean_dead_nodes();
+                run.log();
+                return CallbackProgression::Continue;
+            }
+            run.drain()
+        });
+        // iceoryx2 reports any interrupted wait as an interrupt, also one that no
+        // termination signal caused (stopped and continued with Ctrl-Z and `fg`, a
+        // debugger attaching): only our flag says whether to stop.
+        match result {
+            Ok(WaitSetRunResult::Interrupt) if stop_signal() == 0 && run.failure.is_none() => {
+                continue
+            }
+            r => break r,
         }
-        if id.has_event_from(&stop_check) {
-            return CallbackProgression::Continue;
-        }
-        if id.has_event_from(&tick) {
-            clean_dead_nodes();
-            run.log();
-            return CallbackProgression::Continue;
-        }
-        run.drain()
-    });
+    };
     if let Some(e) = run.failure {
         return Err(e);
     }
@@ -207,20 +218,30 @@ impl Run<'_> {
     }
 
     /// Answer every waiting request, then poll `spin` for pipelined follow-ups.
+    ///
+    /// The wake-ups are consumed only when the requests have run dry, so that the first
+    /// request after an idle pause is answered before anything else; a request whose
+    /// wake-up is consumed then is still seen by the one last look that follows (a
+    /// client sends before it notifies). The poll yields the core between looks: on a
+    /// machine with few cores the client that woke us may be waiting for this very core.
     fn drain(&mut self) -> CallbackProgression {
-        self.ports.listener.try_wait(|_| {}).ok();
         let mut idle_since = Instant::now();
+        let mut last_look = false;
         loop {
             match self.ports.server.receive() {
                 Ok(Some(req)) => {
                     self.handle(&req);
                     idle_since = Instant::now();
+                    last_look = false;
                 }
+                Ok(None) if last_look => return CallbackProgression::Continue,
                 Ok(None) => {
                     if idle_since.elapsed() >= self.spin {
-                        return CallbackProgression::Continue;
+                        self.ports.listener.try_wait(|_| {}).ok();
+                        last_look = true;
+                    } else {
+                        std::thread::yield_now();
                     }
-                    std::hint::spin_loop();
                 }
                 Err(e) => {
                     self.failure = Some(ServiceError::ipc("receive", e));
