@@ -27,29 +27,23 @@
 use std::path::Path;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 
 use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::intrinsic::{Intrinsic, Shaping};
 use fulcrum_contracts::msg::{MAX_BATCH, MAX_IN_FLIGHT};
 use fulcrum_contracts::traj::{
-    self, put_f32, ChunkHeader, ChunkLayout, ChunkPublisher, EnvRecord, PolicyFactory, Section,
-    TrainNames, TrajFactory, WeightsSubscriber, ENV_BYTES,
+    self, put_f32, ChunkHeader, ChunkLayout, EnvRecord, Section, ENV_BYTES,
 };
-use fulcrum_empowerment::service::{clean_dead_nodes, Ask, Client};
+use fulcrum_empowerment::service::{Ask, Client};
 use fulcrum_world::{State, World};
-use iceoryx2::port::listener::Listener;
-use iceoryx2::port::notifier::Notifier;
-use iceoryx2::port::BackpressureAction;
-use iceoryx2::prelude::*;
-use iceoryx2::service::port_factory::event::PortFactory as EventFactory;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::ActorError;
 use crate::policy::Policy;
+use crate::ports::Ports;
 use crate::resume::{reset_unknown_states, resume_records};
-use crate::service::{connect, pump, Asked};
+use crate::service::{connect, look_up_resets, pump, service_trouble, Asked};
 use crate::weights::WeightsIn;
 use crate::worlds::EnvWorlds;
 use fulcrum_contracts::IpcError;
@@ -91,84 +85,6 @@ pub fn run_actor(
     }
 }
 
-/// The actor's shared-memory ports: chunks and their wake-ups out, and the services
-/// the weights come in by ([`WeightsIn`] holds their ports). The fields drop in the
-/// reverse order of their creation.
-struct Ports {
-    _policy_wake: EventFactory<ipc::Service>,
-    _policy: PolicyFactory,
-    notifier: Notifier<ipc::Service>,
-    _chunks_wake: EventFactory<ipc::Service>,
-    publisher: ChunkPublisher,
-    _chunks: TrajFactory,
-    _node: Node<ipc::Service>,
-}
-
-impl Ports {
-    /// The ports of the run in `namespace`, for chunks of `bytes` bytes, and the weights'
-    /// subscriber and wake-up listener (the weights service made for `subscribers`).
-    /// Sending blocks while the learner's queue is full (until `stop`).
-    fn open(
-        namespace: &str,
-        bytes: usize,
-        subscribers: usize,
-        stop: &'static AtomicBool,
-    ) -> Result<(Ports, WeightsSubscriber, Listener<ipc::Service>), ActorError> {
-        let node = NodeBuilder::new()
-            .signal_handling_mode(SignalHandlingMode::Disabled)
-            .create::<ipc::Service>()
-            .map_err(|e| IpcError::new("node", e))?;
-        let names = TrainNames::new(namespace);
-        let tsvc = traj::trajectory_service(&node, &names).map_err(ActorError::from)?;
-        let publisher = tsvc
-            .publisher_builder()
-            .initial_max_slice_len(bytes)
-            .max_loaned_samples(traj::CHUNKS_LOANED)
-            .backpressure_strategy(BackpressureStrategy::RetryUntilDelivered)
-            .set_backpressure_handler(move |info: &iceoryx2::port::BackpressureInfo| {
-                // The learner's queue is full: wait without burning a core, clean up after
-                // a dead learner now and then, and give up when asked to stop.
-                if stop.load(Ordering::Relaxed) {
-                    return BackpressureAction::DiscardDataAndFail;
-                }
-                if info.retries % 200 == 199 {
-                    clean_dead_nodes();
-                }
-                std::thread::sleep(Duration::from_micros(500));
-                BackpressureAction::Retry
-            })
-            .create()
-            .map_err(|e| IpcError::new("publisher", e))?;
-        let twake =
-            traj::wake_service(&node, &names.trajectories_wake).map_err(ActorError::from)?;
-        let notifier = twake
-            .notifier_builder()
-            .create()
-            .map_err(|e| IpcError::new("notifier", e))?;
-        let psvc = traj::policy_service(&node, &names, subscribers).map_err(ActorError::from)?;
-        let sub = psvc
-            .subscriber_builder()
-            .create()
-            .map_err(|e| IpcError::new("subscriber", e))?;
-        let pwake = traj::wake_service(&node, &names.policy_wake).map_err(ActorError::from)?;
-        let listener = pwake
-            .listener_builder()
-            .create()
-            .map_err(|e| IpcError::new("listener", e))?;
-
-        let ports = Ports {
-            _policy_wake: pwake,
-            _policy: psvc,
-            notifier,
-            _chunks_wake: twake,
-            publisher,
-            _chunks: tsvc,
-            _node: node,
-        };
-        Ok((ports, sub, listener))
-    }
-}
-
 /// Where a chunk's lookups stand.
 #[derive(Debug, Clone, Copy, Default)]
 struct Lookups {
@@ -182,7 +98,8 @@ struct Lookups {
 
 /// An actor: its worlds, its copy of the policy, its ports and its service client, and
 /// the buffers a chunk reuses. One method per phase of a chunk: [`Actor::collect`],
-/// [`Actor::look_up`], [`Actor::rewards`], [`Actor::send`], [`Actor::receive_weights`].
+/// [`Actor::look_up`], [`Actor::rewards`], then [`Actor::chunk`] sends it, and
+/// [`Actor::receive_weights`].
 struct Actor<'a> {
     /// The run's world (on a family, the family's [`fulcrum_world::family::Family::run_world`]):
     /// the shape, the actions and the hash every chunk carries.
@@ -799,49 +716,5 @@ impl<'a> Actor<'a> {
             None => {}
         }
         Ok(true)
-    }
-}
-
-/// The potentials of the initial states of the episodes begun in a chunk (a family's
-/// layouts, potential forms), into `vals`; asked after the chunk's own lookups.
-fn look_up_resets(
-    cl: &mut Client,
-    ask: Ask,
-    resets: &[(usize, State, u64)],
-    vals: &mut Vec<f32>,
-) -> Result<(), fulcrum_empowerment::service::ClientError> {
-    vals.clear();
-    vals.resize(resets.len(), 0.0);
-    if resets.is_empty() {
-        return Ok(());
-    }
-    let states: Vec<State> = resets.iter().map(|r| r.1).collect();
-    let layouts: Vec<u64> = resets.iter().map(|r| r.2).collect();
-    let (mut sent, mut got) = (0, 0);
-    while got < states.len() {
-        pump(
-            cl,
-            ask,
-            Asked {
-                states: &states,
-                layouts: Some(&layouts),
-            },
-            &mut sent,
-            &mut got,
-            vals,
-            MAX_BATCH,
-        )?;
-    }
-    Ok(())
-}
-
-/// A lookup that failed: a warning, unless the actor is stopping (the end of a run
-/// stops the actors and the service together, and a request in flight then finds the
-/// service gone).
-fn service_trouble(stop: &AtomicBool, actor: u32, e: &dyn std::fmt::Display) {
-    if stop.load(Ordering::Relaxed) {
-        tracing::debug!(actor, "empowerment service while stopping: {e}");
-    } else {
-        tracing::warn!(actor, "empowerment service: {e}");
     }
 }

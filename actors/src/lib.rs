@@ -11,6 +11,8 @@ pub mod error;
 pub mod fault;
 /// The policy evaluated on plain buffers (no candle).
 pub mod policy;
+/// The shared-memory ports an actor opens: chunks out, weights in.
+mod ports;
 /// The worlds an actor resumes from the run's checkpoint.
 mod resume;
 /// Connecting to the empowerment service and the pipelined lookups.

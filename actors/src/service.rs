@@ -4,7 +4,7 @@
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use fulcrum_contracts::msg::{item, MAX_IN_FLIGHT};
+use fulcrum_contracts::msg::{item, MAX_BATCH, MAX_IN_FLIGHT};
 use fulcrum_empowerment::service::{Ask, Client, ClientError};
 use fulcrum_world::{State, World};
 
@@ -81,5 +81,49 @@ pub(crate) fn connect(
                 tracing::info!("waiting for the empowerment service: {e}");
             }
         }
+    }
+}
+
+/// The potentials of the initial states of the episodes begun in a chunk (a family's
+/// layouts, potential forms), into `vals`; asked after the chunk's own lookups.
+pub(crate) fn look_up_resets(
+    cl: &mut Client,
+    ask: Ask,
+    resets: &[(usize, State, u64)],
+    vals: &mut Vec<f32>,
+) -> Result<(), fulcrum_empowerment::service::ClientError> {
+    vals.clear();
+    vals.resize(resets.len(), 0.0);
+    if resets.is_empty() {
+        return Ok(());
+    }
+    let states: Vec<State> = resets.iter().map(|r| r.1).collect();
+    let layouts: Vec<u64> = resets.iter().map(|r| r.2).collect();
+    let (mut sent, mut got) = (0, 0);
+    while got < states.len() {
+        pump(
+            cl,
+            ask,
+            Asked {
+                states: &states,
+                layouts: Some(&layouts),
+            },
+            &mut sent,
+            &mut got,
+            vals,
+            MAX_BATCH,
+        )?;
+    }
+    Ok(())
+}
+
+/// A lookup that failed: a warning, unless the actor is stopping (the end of a run
+/// stops the actors and the service together, and a request in flight then finds the
+/// service gone).
+pub(crate) fn service_trouble(stop: &AtomicBool, actor: u32, e: &dyn std::fmt::Display) {
+    if stop.load(Ordering::Relaxed) {
+        tracing::debug!(actor, "empowerment service while stopping: {e}");
+    } else {
+        tracing::warn!(actor, "empowerment service: {e}");
     }
 }
