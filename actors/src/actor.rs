@@ -43,6 +43,7 @@ use crate::error::ActorError;
 use crate::policy::Policy;
 use crate::ports::Ports;
 use crate::resume::{reset_unknown_states, resume_records};
+use crate::seeds::chunk_seed;
 use crate::service::{connect, look_up_resets, pump, service_trouble, Asked};
 use crate::weights::WeightsIn;
 use crate::worlds::EnvWorlds;
@@ -55,16 +56,6 @@ pub struct ActorId {
     pub index: u32,
     /// Restarts before this process.
     pub incarnation: u32,
-}
-
-/// A seed for one chunk's sampling.
-pub fn chunk_seed(seed: u64, actor: u32, version: u64, k: u64) -> u64 {
-    let mut x = seed ^ 0xa076_1d64_78bd_642f;
-    for v in [actor as u64, version, k] {
-        x = (x ^ v).wrapping_mul(0x9e37_79b9_7f4a_7c15);
-        x ^= x >> 29;
-    }
-    x
 }
 
 /// Run an actor until `stop` is set (or the learner goes away). Its chunks carry

@@ -15,6 +15,8 @@ pub mod policy;
 mod ports;
 /// The worlds an actor resumes from the run's checkpoint.
 mod resume;
+/// The seeds of an actor's draws, one per chunk.
+mod seeds;
 /// Connecting to the empowerment service and the pipelined lookups.
 mod service;
 /// New weights from the learner into the policy.
@@ -22,7 +24,8 @@ mod weights;
 /// The worlds an actor's envs play: one world, or a family's layouts.
 mod worlds;
 
-pub use actor::{chunk_seed, run_actor, ActorId};
+pub use actor::{run_actor, ActorId};
 pub use error::ActorError;
 pub use policy::Policy;
+pub use seeds::chunk_seed;
 pub use service::{SERVICE_START_LIMIT, SERVICE_WAIT};

@@ -84,7 +84,7 @@ pub(crate) fn resume_records(
 /// A fresh episode for env `e` in place of a record that cannot be resumed: on a family,
 /// on a layout drawn from (actor, env), so that a resume stays reproducible.
 fn fresh(worlds: &mut EnvWorlds, actor: u32, e: usize) -> Result<Env, ActorError> {
-    let r = crate::actor::chunk_seed(actor as u64, actor, e as u64, u64::MAX - 1);
+    let r = crate::seeds::chunk_seed(actor as u64, actor, e as u64, u64::MAX - 1);
     worlds.fresh(|| r)
 }
 

@@ -93,7 +93,7 @@ impl EnvWorlds {
         m: usize,
     ) -> Result<Vec<(Arc<World>, EnvRecord)>, ActorError> {
         let mut rng =
-            ChaCha8Rng::seed_from_u64(crate::actor::chunk_seed(seed, actor, u64::MAX, u64::MAX));
+            ChaCha8Rng::seed_from_u64(crate::seeds::chunk_seed(seed, actor, u64::MAX, u64::MAX));
         (0..m).map(|_| self.fresh(|| rng.next_u64())).collect()
     }
 }

@@ -7,11 +7,12 @@ use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::time::Duration;
 
-use crate::error::{Context, Result};
+use crate::error::{bad, Context, Result};
 use fulcrum_learner::paths::RunPaths;
 
 use super::{state, train_args, Job, Spec, State};
 use crate::error::Interrupted;
+use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping};
 use crate::progress::Progress;
 
@@ -58,7 +59,7 @@ pub(super) fn schedule(
             if st == State::Fresh && job.dir.exists() {
                 // A run that never wrote a checkpoint has nothing to continue from;
                 // cleared under its lock, never while another invocation holds it.
-                if let Err(e) = super::slurm::clear_fresh(job) {
+                if let Err(e) = clear_fresh(job) {
                     progress.note(&format!("{} not started: {e}", name(job)));
                     failed.push(name(job));
                     continue;
@@ -192,4 +193,13 @@ pub(super) fn last_steps(dir: &Path) -> u64 {
         .map(|r| r.env_steps)
         .next()
         .unwrap_or(0)
+}
+
+/// A pair that never wrote a checkpoint cleared (under its lock) so that it starts over.
+pub(super) fn clear_fresh(j: &Job) -> Result<()> {
+    match DirLock::acquire(&j.dir) {
+        Ok(_held) => Ok(std::fs::remove_dir_all(&j.dir)
+            .with_context(|| format!("cannot clear {}", j.dir.display()))?),
+        Err(e) => bad(e.to_string()),
+    }
 }

@@ -30,10 +30,9 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use crate::error::{bad, BadRequest, Context, Result};
-use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping, utc_stamp};
 
-use super::schedule::{last_steps, train_command};
+use super::schedule::{clear_fresh, last_steps, train_command};
 use super::{job, prepare, read_spec, state, ExperimentRequest, Job, Spec, State};
 
 /// What the array script asks of Slurm.
@@ -309,15 +308,6 @@ pub fn run_task(dir: &Path, arm: &str, seed: u64) -> Result<TaskOutcome> {
         }
     }
     result.map(|()| TaskOutcome::Finished)
-}
-
-/// A pair that never wrote a checkpoint cleared (under its lock) so that it starts over.
-pub(super) fn clear_fresh(j: &Job) -> Result<()> {
-    match DirLock::acquire(&j.dir) {
-        Ok(_held) => Ok(std::fs::remove_dir_all(&j.dir)
-            .with_context(|| format!("cannot clear {}", j.dir.display()))?),
-        Err(e) => bad(e.to_string()),
-    }
 }
 
 /// `train` on the pair, its output appended to the pair's log, until it exits.
