@@ -388,3 +388,13 @@ pub fn arm_flags(name: &str, form: &str, beta: Option<f64>) -> Option<Vec<String
 pub fn view_flags(view: &fulcrum_world::View) -> Vec<String> {
     vec!["--view".into(), view.to_string()]
 }
+
+/// The `train` flags that choose the intrinsic form: an experiment's stored arguments
+/// that name none of them ran `train`'s default form of their day.
+pub const FORM_FLAGS: [&str; 3] = ["--intrinsic", "--no-empowerment", "--paper"];
+
+/// `train`'s arguments for the paper's additive bonus (the default form before
+/// experiment files had a version).
+pub fn additive_form() -> [String; 2] {
+    ["--intrinsic".to_string(), "additive".to_string()]
+}

@@ -265,3 +265,32 @@ fn the_benchs_helpers_parse() {
         other => panic!("{other:?}"),
     }
 }
+
+/// The old experiment files' default form parses as the additive bonus, and each of the
+/// flags that name a form is one `train` reads as naming it.
+#[test]
+fn the_form_flags_name_a_form() {
+    use fulcrum_contracts::intrinsic::Intrinsic;
+    let form_of = |flags: Vec<String>| {
+        let job = TrainJob::New(NewRun {
+            flags,
+            ..NewRun::new("room", 1024, &PathBuf::from("/f"))
+        });
+        match parse(argv::train(&job)) {
+            Command::Train(t) => t.request().unwrap().fixed.form(),
+            other => panic!("{other:?}"),
+        }
+    };
+    assert_eq!(
+        form_of(argv::additive_form().to_vec()),
+        Some(Intrinsic::Additive)
+    );
+    assert_eq!(form_of(vec![]), None, "no flag names no form");
+    for (flag, value) in argv::FORM_FLAGS.iter().zip(["first-visit", "", ""]) {
+        let mut flags = vec![flag.to_string()];
+        if !value.is_empty() {
+            flags.push(value.to_string());
+        }
+        assert!(form_of(flags).is_some(), "{flag} names a form");
+    }
+}

@@ -95,13 +95,12 @@ impl Spec {
     fn upgraded(mut self) -> Spec {
         let names_form = |args: &[String]| {
             args.iter()
-                .any(|a| a == "--intrinsic" || a == "--no-empowerment" || a == "--paper")
+                .any(|a| crate::argv::FORM_FLAGS.contains(&a.as_str()))
         };
         if self.version < 2 && !names_form(&self.extra) {
             for arm in &mut self.arms {
                 if !names_form(&arm.args) {
-                    arm.args
-                        .splice(0..0, ["--intrinsic".to_string(), "additive".to_string()]);
+                    arm.args.splice(0..0, crate::argv::additive_form());
                 }
             }
         }
