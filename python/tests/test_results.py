@@ -48,21 +48,27 @@ def test_the_worlds_nobody_wrote_tables_are_results_mds():
 
 def test_the_masked_tables_recompute_from_committed_summaries():
     """scripts/masked_tables.py recomputes the log-rank tests and Holm's adjustment from
-    the per-seed steps of every committed summary (exp1-tree, exp1-wall and exp3 so far; rerun
-    with the code of today, they gave the published tables to the digit) and prints rows
-    that are RESULTS.md's."""
+    the per-seed steps of every committed summary (the four worlds; rerun with the code of
+    their day, they gave the published tables to the digit) and prints rows that are
+    RESULTS.md's."""
     out = run_script("masked_tables.py")
     committed = sorted(p.name for p in (ROOT / "docs" / "results").glob("masked-*-summary.json"))
     assert committed == [
         "masked-exp1-tree-summary.json",
         "masked-exp1-wall-summary.json",
+        "masked-exp2-summary.json",
         "masked-exp3-summary.json",
     ]
-    for world in ["exp1-tree (budget 500k)", "exp1-wall (budget 500k)", "exp3 (budget 3M)"]:
+    for world in [
+        "exp1-tree (budget 500k)",
+        "exp1-wall (budget 500k)",
+        "exp2 (budget 3M)",
+        "exp3 (budget 3M)",
+    ]:
         assert world in out
     table = (ROOT / "docs" / "results" / "masked-tables.md").read_text().splitlines()
     results = (ROOT / "RESULTS.md").read_text().splitlines()
     rows = [line for line in out.splitlines() if line.startswith("| ") and "---" not in line]
-    assert len(rows) == 3 * 9
+    assert len(rows) == 4 * 9
     for line in rows:
         assert line in table and line in results, line
