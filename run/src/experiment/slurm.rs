@@ -30,6 +30,7 @@ use std::process::{Command, Stdio};
 use std::time::Duration;
 
 use crate::error::{bad, BadRequest, Context, Result};
+use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping, utc_stamp};
 
 use super::schedule::{clear_fresh, last_steps, train_command};
@@ -284,6 +285,7 @@ pub fn run_task(dir: &Path, arm: &str, seed: u64) -> Result<TaskOutcome> {
     }
     let j = job(dir, &spec, ai, seed);
     let status = status_file(dir, &spec, &j);
+    wait_for_leftovers(&j.dir);
     let st = state(&j.dir, spec.steps);
     if st == State::Done {
         let _ = std::fs::remove_file(&status);
@@ -308,6 +310,33 @@ pub fn run_task(dir: &Path, arm: &str, seed: u64) -> Result<TaskOutcome> {
         }
     }
     result.map(|()| TaskOutcome::Finished)
+}
+
+/// How long a task waits for the processes of a killed predecessor to let go of its run
+/// directory.
+const LEFTOVERS_WAIT: Duration = Duration::from_secs(60);
+
+/// Wait (at most [`LEFTOVERS_WAIT`]) until no process holds the run directory `dir`.
+/// A task that Slurm killed and requeued on the same node can start again while the
+/// learner, actors and service of the killed one still hold the directory's lock: they
+/// die with their supervisor (`PR_SET_PDEATHSIG`), the learner after writing its
+/// checkpoint, which takes seconds. Past the wait, `train` says who holds it.
+fn wait_for_leftovers(dir: &Path) {
+    let t0 = std::time::Instant::now();
+    let mut said = false;
+    while let Some(pid) = DirLock::holder(dir) {
+        if t0.elapsed() >= LEFTOVERS_WAIT || stopping() {
+            return;
+        }
+        if !said {
+            eprintln!(
+                "fulcrum experiment: waiting for pid {pid} to let go of {}",
+                dir.display()
+            );
+            said = true;
+        }
+        std::thread::sleep(Duration::from_millis(100));
+    }
 }
 
 /// `train` on the pair, its output appended to the pair's log, until it exits.
