@@ -161,3 +161,13 @@ pub fn weights(run: &Path, world: &str) -> Vec<f32> {
 pub fn same_bits(a: &[f32], b: &[f32]) -> bool {
     a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
 }
+
+/// A TCP port that was free a moment ago (the tests between hosts and on Slurm).
+#[cfg(any(feature = "multihost", feature = "slurm"))]
+pub fn free_port() -> u16 {
+    std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port()
+}

@@ -17,7 +17,7 @@ use std::time::{Duration, Instant};
 
 use fulcrum_learner::metrics::read_metrics;
 
-use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
+use crate::util::{free_port, fulcrum, pids_with, signal, wait_until, TempDir};
 
 mod restarts;
 mod rogue;
@@ -26,15 +26,6 @@ mod rogue;
 fn secret_of(dir: &Path) -> String {
     let text = std::fs::read_to_string(dir.join("secret")).expect("the run's secret file");
     text.trim().trim_start_matches("fulcrum:").to_string()
-}
-
-/// A TCP port that was free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 /// A child whose stderr and stdout lines are collected as they come.

@@ -3,7 +3,8 @@
 
 use std::time::Duration;
 
-use super::{free_port, host_rows, secret_of, Proc, SMALL};
+use super::{host_rows, secret_of, Proc, SMALL};
+use crate::util::free_port;
 use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
 
 #[test]

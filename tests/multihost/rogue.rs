@@ -14,7 +14,8 @@ use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::msg::{kind, wire, EmpRequest};
 use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, WeightsHeader};
 
-use super::{free_port, host_rows, Proc, SMALL};
+use super::{host_rows, Proc, SMALL};
+use crate::util::free_port;
 use crate::util::{fulcrum, pids_with, wait_until, TempDir};
 
 /// A zenoh peer towards `addr`, presenting `secret` when given; it listens on nothing.

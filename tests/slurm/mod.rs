@@ -13,7 +13,7 @@ use std::time::Duration;
 use fulcrum_learner::metrics::read_metrics;
 
 use crate::experiment::tasks::{collected_equals_local, script_pairs, EXPERIMENT};
-use crate::util::{fulcrum, pids_with, wait_until, TempDir};
+use crate::util::{free_port, fulcrum, pids_with, wait_until, TempDir};
 
 /// A running single-node cluster; stopped when dropped.
 struct Node {
@@ -23,15 +23,6 @@ struct Node {
 
 fn script() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("scripts/slurm-node.sh")
-}
-
-/// A TCP port that was free a moment ago.
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
 }
 
 impl Node {

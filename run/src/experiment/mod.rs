@@ -246,16 +246,22 @@ fn read_spec(dir: &Path) -> Result<Option<Spec>> {
     if !spec_path.exists() {
         return Ok(None);
     }
-    let old: Spec = std::fs::read_to_string(&spec_path)
+    let old: Spec = read_toml(&spec_path, "an experiment file")?;
+    Ok(Some(old.upgraded()))
+}
+
+/// A TOML file this version wrote, or one sentence saying it is not `what` it can read.
+fn read_toml<T: serde::de::DeserializeOwned>(path: &Path, what: &str) -> Result<T> {
+    std::fs::read_to_string(path)
         .ok()
         .and_then(|t| toml::from_str(&t).ok())
         .ok_or_else(|| {
             BadRequest(format!(
-                "{} is not an experiment file this version can read",
-                spec_path.display()
+                "{} is not {what} this version can read",
+                path.display()
             ))
-        })?;
-    Ok(Some(old.upgraded()))
+            .into()
+        })
 }
 
 /// Creates (or checks and extends) the experiment directory of `a`.

@@ -87,15 +87,7 @@ pub fn prepare_set(
     };
     let spec_path = dir.join("set.toml");
     if spec_path.exists() {
-        let old: SetSpec = std::fs::read_to_string(&spec_path)
-            .ok()
-            .and_then(|t| toml::from_str(&t).ok())
-            .ok_or_else(|| {
-                BadRequest(format!(
-                    "{} is not a set file this version can read",
-                    spec_path.display()
-                ))
-            })?;
+        let old: SetSpec = super::read_toml(&spec_path, "a set file")?;
         if old != spec {
             return bad(format!(
                 "{} holds the set {}, not {description}: a different set needs a directory of its own",
