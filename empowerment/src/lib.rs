@@ -27,6 +27,8 @@
 //! - [`engine`]: the engine: values, matrix, tool selection, landscapes, traces, queries;
 //! - [`space`]: state-space enumeration and the successor table;
 //! - [`propagate`]: set propagation, the fast exact method;
+//! - [`auto`]: tool selection and the selected tool's table in one propagation (every
+//!   tool's sets side by side), what a family's service makes per layout;
 //! - [`stochastic`]: distribution propagation, the exact method of stochastic worlds;
 //! - [`capacity`]: channel capacity in bits (closed form of two outputs, Blahut-Arimoto);
 //! - [`enumerate`]: the reference method, every action sequence;
@@ -42,6 +44,7 @@
 //!   for a world family, a table per layout made the first time it is asked about
 //!   ([`service::FamilyTables`]).
 
+pub mod auto;
 pub mod capacity;
 pub mod dataset;
 pub mod engine;

@@ -5,6 +5,7 @@
 
 use fulcrum_world::{ObjectSet, ToolChoice, World};
 
+use crate::auto::AutoHorizons;
 use crate::engine::{Engine, Method, ToolSel};
 use crate::error::EngineError;
 use crate::limits::Limits;
@@ -67,15 +68,10 @@ pub fn objects_or_default(world: &World, text: Option<&str>) -> Result<ObjectSet
     }
 }
 
-/// Parse a tool name (`all`, `auto`, a name, kind or letter); `auto` selects by the
-/// matrix column of `set` at the world's horizons.
-pub fn tool_sel(
-    world: &World,
-    engine: &Engine,
-    text: Option<&str>,
-    set: &ObjectSet,
-) -> Result<ToolSel> {
-    let choice = match text {
+/// Parse a tool name (`all`, `auto`, a name, kind or letter); `None`: the world's
+/// `[empowerment]` tool.
+pub fn tool_choice(world: &World, text: Option<&str>) -> Result<ToolChoice> {
+    Ok(match text {
         None => world.empowerment.tool.clone(),
         Some("auto") => ToolChoice::Auto,
         Some("all") => ToolChoice::All,
@@ -93,8 +89,27 @@ pub fn tool_sel(
                 ))
             }
         },
-    };
-    Ok(match choice {
+    })
+}
+
+/// The error of a tool selection that selects nothing.
+fn no_tool<T>(world: &World, set: &ObjectSet) -> Result<T> {
+    bad(format!(
+        "tool selection: no tool of world '{}' has empowerment over {}; name one",
+        world.name,
+        crate::engine::set_name(world, set)
+    ))
+}
+
+/// Parse a tool name (`all`, `auto`, a name, kind or letter); `auto` selects by the
+/// matrix column of `set` at the world's horizons.
+pub fn tool_sel(
+    world: &World,
+    engine: &Engine,
+    text: Option<&str>,
+    set: &ObjectSet,
+) -> Result<ToolSel> {
+    Ok(match tool_choice(world, text)? {
         ToolChoice::All => ToolSel::All,
         ToolChoice::Tool(k) => ToolSel::Tool(k),
         ToolChoice::Auto => {
@@ -110,16 +125,45 @@ pub fn tool_sel(
                     tracing::info!(tool = %m.tools[k], "tool selection");
                     ToolSel::Tool(k)
                 }
-                None => {
-                    return bad(format!(
-                        "tool selection: no tool of world '{}' has empowerment over {}; name one",
-                        world.name,
-                        crate::engine::set_name(world, set)
-                    ))
-                }
+                None => return no_tool(world, set),
             }
         }
     })
+}
+
+/// LOOKUP's table: the tool `text` names (as [`tool_sel`]) and its value in every
+/// state (as [`Engine::lookup_values`]). With `auto`, the selection and the table come
+/// from one propagation where [`Engine::auto_table`] applies (the same numbers, about
+/// half the time); elsewhere one after the other.
+pub fn lookup_table(
+    world: &World,
+    engine: &Engine,
+    text: Option<&str>,
+    set: &ObjectSet,
+    horizon_unequipped: u32,
+    horizon_equipped: u32,
+    horizon_sum: bool,
+) -> Result<(ToolSel, Vec<f32>)> {
+    if tool_choice(world, text)? == ToolChoice::Auto {
+        let e = &world.empowerment;
+        let hz = AutoHorizons {
+            select_unequipped: e.horizon_unequipped,
+            select_equipped: e.horizon_equipped,
+            unequipped: horizon_unequipped,
+            equipped: horizon_equipped,
+            horizon_sum,
+        };
+        if let Some(a) = engine.auto_table(set, hz) {
+            return match a.tool {
+                Some(k) => Ok((ToolSel::Tool(k), a.values)),
+                None => no_tool(world, set),
+            };
+        }
+    }
+    let tool = tool_sel(world, engine, text, set)?;
+    let values =
+        engine.lookup_values(tool, set, horizon_unequipped, horizon_equipped, horizon_sum)?;
+    Ok((tool, values))
 }
 
 /// Parse a comma-separated inventory into a bit mask.

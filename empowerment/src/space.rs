@@ -255,26 +255,34 @@ impl StateSpace {
         let mut start = 0;
         while start < states.len() {
             let end = states.len();
-            let level = &states[start..end];
-            // Small levels are cheaper on one thread than split across the pool.
-            let next: Vec<State> = if level.len() >= 2048 {
-                level
+            succ.reserve((end - start) * na);
+            if end - start >= 2048 {
+                // A large level: its successors made in parallel, then numbered in order.
+                let next: Vec<State> = states[start..end]
                     .par_iter()
                     .flat_map_iter(|s| (0..na as u8).map(move |a| world.step(s, a)))
-                    .collect()
-            } else {
-                level
-                    .iter()
-                    .flat_map(|s| (0..na as u8).map(move |a| world.step(s, a)))
-                    .collect()
-            };
-            succ.reserve(next.len());
-            for ns in next {
-                let (id, new) = index.get_or_insert(&ns, states.len() as u32);
-                if new {
-                    states.push(ns);
+                    .collect();
+                for ns in next {
+                    let (id, new) = index.get_or_insert(&ns, states.len() as u32);
+                    if new {
+                        states.push(ns);
+                    }
+                    succ.push(id);
                 }
-                succ.push(id);
+            } else {
+                // A small one is cheaper on one thread, each successor numbered as it
+                // is made (the same order, so the same ids).
+                for i in start..end {
+                    let s = states[i];
+                    for a in 0..na as u8 {
+                        let ns = world.step(&s, a);
+                        let (id, new) = index.get_or_insert(&ns, states.len() as u32);
+                        if new {
+                            states.push(ns);
+                        }
+                        succ.push(id);
+                    }
+                }
             }
             if states.len() > max_states {
                 return Err(EngineError::StateSpaceTooLarge {

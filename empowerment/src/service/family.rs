@@ -5,8 +5,9 @@
 //! = sum over h <= H of E^h(s) with `horizon_sum`), D the layout's own task object and j
 //! the configured tool (`auto`: the layout's own tool selection, the paper's equation 6,
 //! made per layout). It is made the first time a state of the layout is asked for, by
-//! exact set propagation over the layout's whole state space (about 1.5 ms for the median
-//! `toolbox` layout, 35 ms for the slowest in a hundred; `BENCHMARKS.md`), and kept: the
+//! exact set propagation over the layout's whole state space (with `auto`, the selection
+//! and the table in one propagation: [`crate::auto`]; a few ms for the median `toolbox`
+//! layout, tens of ms for one with a pushable boulder; `BENCHMARKS.md`), and kept: the
 //! values (4 bytes a state) and the index from states to ids
 //! ([`crate::StateIndex::BYTES_PER_STATE`] a state), nothing else. The training
 //! layouts of a run on N layouts are made before the service says it is ready and never
@@ -27,7 +28,7 @@ use fulcrum_world::State;
 
 use super::answer::Answer;
 use crate::limits::Limits;
-use crate::request::{objects_or_default, tool_sel};
+use crate::request::{lookup_table, objects_or_default};
 use crate::space::StateIndex;
 use crate::Engine;
 
@@ -136,17 +137,16 @@ impl FamilyTables {
         let w = self.family.layout(seed).map_err(|e| e.to_string())?;
         let engine = Engine::new(&w, Limits::default()).map_err(|e| e.to_string())?;
         let set = objects_or_default(&w, None).map_err(|e| e.to_string())?;
-        let tool = tool_sel(&w, &engine, self.cfg.tool.as_deref(), &set)
-            .map_err(|e| format!("layout {seed}: {e}"))?;
-        let values = engine
-            .lookup_values(
-                tool,
-                &set,
-                self.cfg.horizon_unequipped,
-                self.cfg.horizon_equipped,
-                self.cfg.horizon_sum,
-            )
-            .map_err(|e| e.to_string())?;
+        let (_, values) = lookup_table(
+            &w,
+            &engine,
+            self.cfg.tool.as_deref(),
+            &set,
+            self.cfg.horizon_unequipped,
+            self.cfg.horizon_equipped,
+            self.cfg.horizon_sum,
+        )
+        .map_err(|e| format!("layout {seed}: {e}"))?;
         self.stats.made += 1;
         self.stats.made_us += t0.elapsed().as_micros() as u64;
         Ok(LayoutTable {

@@ -334,10 +334,16 @@ pub(super) fn family_layouts(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
             .objects
             .clone()
             .context("a family's layout names its task object")?;
-        let tool = fulcrum_empowerment::request::tool_sel(&w, &engine, None, &set)?;
         let e = &w.empowerment;
-        let table =
-            engine.lookup_values(tool, &set, e.horizon_unequipped, e.horizon_equipped, true)?;
+        let (_, table) = fulcrum_empowerment::request::lookup_table(
+            &w,
+            &engine,
+            None,
+            &set,
+            e.horizon_unequipped,
+            e.horizon_equipped,
+            true,
+        )?;
         ms.push(t0.elapsed().as_secs_f64() * 1e3);
         ensure!(table.len() == engine.space.len(), "one value per state");
         states.push(table.len() as f64);

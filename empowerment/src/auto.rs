@@ -1,0 +1,255 @@
+//! Tool selection and LOOKUP's table for the tool it selects, in one propagation: every
+//! tool's reachable sets side by side.
+//!
+//! What a world family's service makes for a layout it has never seen, with
+//! `tool = "auto"`: the matrix column of the task object (equation 6 selects its
+//! argmax), then the selected tool's value in every state. Done one after the other
+//! ([`Engine::matrix`], then [`Engine::lookup_values`]) that is T + 1 propagations over
+//! the layout's states. Tool j's actions are {N, E, S, W, apply, select_j}: the tools
+//! share five of their six actions, so with the sets of all T tools stored together per
+//! state (`cur[s T + j]` = R^j_k(s), one 64-bit word each), one step reads each
+//! successor's row once for the shared actions and one word more per tool:
+//!
+//! ```text
+//! R^j_0(s) = { proj_D(s) }
+//! R^j_k(s) = U_{a in {N,E,S,W,apply}} R^j_{k-1}(T(s, a))  U  R^j_{k-1}(T(s, select_j))
+//! ```
+//!
+//! One pass up to H (the largest horizon of the selection and of the table) keeps
+//! |R^j_h(s)| for every h, tool and state (one byte each), from which:
+//!
+//! ```text
+//! column[j] = mean over normal s of log2 |R^j_{h_j(s)}(s)|    h_j(s) = selection's H_eq if s holds j, else H_uneq
+//! j*        = select(column)                                  (argmax, ties to the lower index, zeros: none)
+//! value(s)  = sum_{h=1..H_table} log2 |R^{j*}_h(s)|           (Phi, `horizon_sum`)
+//!           | log2 |R^{j*}_{h(s)}(s)|                         (otherwise)
+//! ```
+//!
+//! These are the numbers the two computations give, to the bit: the same counts, the
+//! same logarithms summed in the same order (a test checks it on every built-in world
+//! and on layouts). Cost per step: `(5 + T)` successor rows of `T` words against `6 T`
+//! single words, one projection instead of `T + 1`. Memory: `2 |S| T` words of sets and
+//! `|S| T H` bytes of counts. It applies to deterministic worlds whose projection has at
+//! most 64 values (one word a set), horizons 1 to `MAX_HORIZON` and 1 to 16 tools;
+//! [`Engine::auto_table`] says `None` elsewhere and the caller computes the two apart.
+
+use fulcrum_world::{ObjectSet, MAX_HORIZON, SELECT0};
+use rayon::prelude::*;
+
+use crate::engine::{select, Engine, ToolSel};
+use crate::propagate::Projection;
+
+/// Tool selection and the selected tool's table (see the module docs).
+#[derive(Debug, Clone, PartialEq)]
+pub struct AutoTable {
+    /// The matrix column: each tool's mean value over the normal states.
+    pub column: Vec<f64>,
+    /// The tool equation 6 selects (`None`: no tool has empowerment over the set).
+    pub tool: Option<usize>,
+    /// LOOKUP's value in every state (by state id) for the selected tool; empty when
+    /// no tool is selected.
+    pub values: Vec<f32>,
+}
+
+/// Horizons of one [`Engine::auto_table`]: the selection's (the world's
+/// `[empowerment]`) and the table's (the service's).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct AutoHorizons {
+    /// The selection's horizon where the tool is not held.
+    pub select_unequipped: u32,
+    /// The selection's horizon where it is held.
+    pub select_equipped: u32,
+    /// The table's horizon where the tool is not held.
+    pub unequipped: u32,
+    /// The table's horizon where it is held.
+    pub equipped: u32,
+    /// The table holds Phi = sum over h <= max(unequipped, equipped) of E^h.
+    pub horizon_sum: bool,
+}
+
+/// The actions every tool's subset holds.
+const SHARED: [u8; 5] = [
+    fulcrum_world::NORTH,
+    fulcrum_world::EAST,
+    fulcrum_world::SOUTH,
+    fulcrum_world::WEST,
+    fulcrum_world::APPLY,
+];
+
+/// One step of the propagation for `T` tools: `next` from `cur`, and each set's size
+/// into `cnt` (both `T` per state).
+fn propagate_step<const T: usize>(
+    succ: &[u32],
+    na: usize,
+    cur: &[u64],
+    next: &mut [u64],
+    cnt: &mut [u8],
+) {
+    next.par_chunks_exact_mut(T)
+        .zip(cnt.par_chunks_exact_mut(T))
+        .with_min_len(1024)
+        .enumerate()
+        .for_each(|(s, (dst, c))| {
+            let row = &succ[s * na..s * na + na];
+            let mut acc = [0u64; T];
+            for &a in &SHARED {
+                let r = row[a as usize] as usize * T;
+                let from: &[u64; T] = cur[r..r + T].try_into().expect("T words a state");
+                for j in 0..T {
+                    acc[j] |= from[j];
+                }
+            }
+            for (j, d) in acc.iter_mut().enumerate() {
+                *d |= cur[row[SELECT0 as usize + j] as usize * T + j];
+            }
+            dst.copy_from_slice(&acc);
+            for (c, x) in c.iter_mut().zip(acc) {
+                *c = x.count_ones() as u8;
+            }
+        });
+}
+
+/// [`propagate_step`] for any number of tools up to 16.
+fn propagate_step_any(
+    t: usize,
+    succ: &[u32],
+    na: usize,
+    cur: &[u64],
+    next: &mut [u64],
+    cnt: &mut [u8],
+) {
+    next.par_chunks_exact_mut(t)
+        .zip(cnt.par_chunks_exact_mut(t))
+        .with_min_len(1024)
+        .enumerate()
+        .for_each(|(s, (dst, c))| {
+            let row = &succ[s * na..s * na + na];
+            let mut acc = [0u64; 16];
+            let acc = &mut acc[..t];
+            for &a in &SHARED {
+                let r = row[a as usize] as usize * t;
+                for (d, x) in acc.iter_mut().zip(&cur[r..r + t]) {
+                    *d |= *x;
+                }
+            }
+            for (j, d) in acc.iter_mut().enumerate() {
+                *d |= cur[row[SELECT0 as usize + j] as usize * t + j];
+            }
+            dst.copy_from_slice(acc);
+            for (c, x) in c.iter_mut().zip(acc.iter()) {
+                *c = x.count_ones() as u8;
+            }
+        });
+}
+
+/// log2 of the counts a set of at most 64 projections can have, as `f64::log2` gives them.
+fn log2_table() -> [f64; 65] {
+    let mut t = [0.0; 65];
+    for (c, v) in t.iter_mut().enumerate() {
+        *v = (c as f64).log2();
+    }
+    t
+}
+
+impl Engine<'_> {
+    /// Tool selection over `set` and the selected tool's LOOKUP table, in one
+    /// propagation (module docs); `None` where this path does not apply (a stochastic
+    /// world, more than 64 projections, a horizon of 0 or above `MAX_HORIZON`, no tools or
+    /// more than 16, or tables beyond the memory limit): compute the two apart there.
+    pub fn auto_table(&self, set: &ObjectSet, hz: AutoHorizons) -> Option<AutoTable> {
+        let world = self.world;
+        let t = world.tools.len();
+        let table_h = hz.unequipped.max(hz.equipped);
+        let all_h = [
+            hz.select_unequipped,
+            hz.select_equipped,
+            hz.unequipped,
+            hz.equipped,
+        ];
+        if world.is_stochastic()
+            || !(1..=16).contains(&t)
+            || all_h.iter().any(|&h| h == 0 || h > MAX_HORIZON)
+        {
+            return None;
+        }
+        let hmax = all_h.into_iter().max().unwrap_or(0) as usize;
+        let proj = Projection::new(&self.space, set);
+        let n = self.space.len();
+        let bytes = n * t * 8 * 2 + n * t * hmax;
+        if proj.words() != 1 || self.space.bytes() + bytes > self.limits.max_bytes {
+            return None;
+        }
+        let na = self.space.num_actions();
+        let succ = self.space.succ_table();
+        // Sets: row s holds the T tools' words.
+        let mut cur: Vec<u64> = Vec::with_capacity(n * t);
+        for &p in &proj.ids {
+            cur.extend(std::iter::repeat_n(1u64 << p, t));
+        }
+        let mut next = vec![0u64; n * t];
+        // counts[(h - 1) n T + s T + j] = |R^j_h(s)|.
+        let mut counts = vec![0u8; hmax * n * t];
+        for step in counts.chunks_mut(n * t) {
+            match t {
+                1 => propagate_step::<1>(succ, na, &cur, &mut next, step),
+                2 => propagate_step::<2>(succ, na, &cur, &mut next, step),
+                3 => propagate_step::<3>(succ, na, &cur, &mut next, step),
+                4 => propagate_step::<4>(succ, na, &cur, &mut next, step),
+                _ => propagate_step_any(t, succ, na, &cur, &mut next, step),
+            }
+            std::mem::swap(&mut cur, &mut next);
+        }
+        let log2 = log2_table();
+        let count = |h: u32, s: usize, j: usize| counts[(h as usize - 1) * n * t + s * t + j];
+        let states = self.space.states();
+        let normal: Vec<u32> = self.space.normal_ids().collect();
+        let column: Vec<f64> = (0..t)
+            .map(|j| {
+                let tool = ToolSel::Tool(j);
+                let sum: f64 = normal
+                    .iter()
+                    .map(|&i| {
+                        let s = i as usize;
+                        let h = if tool.held(&states[s]) {
+                            hz.select_equipped
+                        } else {
+                            hz.select_unequipped
+                        };
+                        log2[count(h, s, j) as usize]
+                    })
+                    .sum();
+                if normal.is_empty() {
+                    0.0
+                } else {
+                    sum / normal.len() as f64
+                }
+            })
+            .collect();
+        let tool = select(column.iter().copied());
+        let values = match tool {
+            None => Vec::new(),
+            Some(j) if hz.horizon_sum => (0..n)
+                .map(|s| {
+                    (1..=table_h)
+                        .map(|h| log2[count(h, s, j) as usize])
+                        .sum::<f64>() as f32
+                })
+                .collect(),
+            Some(j) => (0..n)
+                .map(|s| {
+                    let h = if ToolSel::Tool(j).held(&states[s]) {
+                        hz.equipped
+                    } else {
+                        hz.unequipped
+                    };
+                    log2[count(h, s, j) as usize] as f32
+                })
+                .collect(),
+        };
+        Some(AutoTable {
+            column,
+            tool,
+            values,
+        })
+    }
+}
