@@ -609,8 +609,9 @@ pub struct ExperimentArgs {
     #[arg(long, default_value_t = 10)]
     pub smooth: usize,
     /// Where the runs go: local (this machine, --parallel at a time) or slurm (a Slurm
-    /// job array, one task per arm and seed still to run: the script is written to
-    /// DIR/slurm/ and submitted with sbatch; see --dry-run and --collect).
+    /// job array, one task per arm and seed still to run, per world of a --worlds set:
+    /// the script is written to DIR/slurm/ and submitted with sbatch; see --dry-run and
+    /// --collect).
     #[arg(long, default_value = "local", value_parser = ["local", "slurm"])]
     pub launcher: String,
     /// With --launcher slurm: write the array script and print it, submit nothing.

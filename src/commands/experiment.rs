@@ -127,9 +127,6 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
     {
         return bad("the --slurm-* and --sbatch flags go with --launcher slurm");
     }
-    if slurm && a.worlds.is_some() {
-        return bad("--launcher slurm runs one world's experiment: give the generated set's worlds one at a time (`world generate` writes them)");
-    }
     if a.seeds == 0 {
         return bad("--seeds must be at least 1");
     }
@@ -139,34 +136,43 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
     check_statistics(a)?;
     let arms = arms(a)?;
     if let Some(set) = &a.worlds {
-        return run_set(a, set, arms);
+        if slurm {
+            let o = slurm_options(a)?;
+            fulcrum_run::experiment::check_options(&o)?;
+            let req = set_request(a, set, arms)?;
+            return report_launch(&fulcrum_run::experiment::launch_set(&req, &o)?);
+        }
+        let req = set_request(a, set, arms)?;
+        print!("{}", fulcrum_run::experiment::run_set(&req)?);
+        return Ok(());
     }
     let world = a.world.clone().unwrap_or_default();
     let req = request(a, &world, &arms, a.out.clone())?;
     if slurm {
-        return launch(a, &req);
+        let l = fulcrum_run::experiment::launch(&req, &slurm_options(a)?)?;
+        return report_launch(&l);
     }
     let markdown = fulcrum_run::experiment::run(&req)?;
     print!("{markdown}");
     Ok(())
 }
 
-/// `fulcrum experiment ... --launcher slurm`: the array script written, then submitted
-/// (or printed, with `--dry-run`).
-fn launch(a: &ExperimentArgs, req: &ExperimentRequest) -> Result<()> {
-    let exe = std::env::current_exe().context("cannot find the fulcrum executable")?;
-    let l = fulcrum_run::experiment::launch(
-        req,
-        &SlurmOptions {
-            partition: a.slurm_partition.clone(),
-            time: a.slurm_time.clone(),
-            cpus: a.slurm_cpus,
-            mem: a.slurm_mem.clone(),
-            extra: a.sbatch.clone(),
-            submit: !a.dry_run,
-            exe,
-        },
-    )?;
+/// What `--launcher slurm` asks of Slurm.
+fn slurm_options(a: &ExperimentArgs) -> Result<SlurmOptions> {
+    Ok(SlurmOptions {
+        partition: a.slurm_partition.clone(),
+        time: a.slurm_time.clone(),
+        cpus: a.slurm_cpus,
+        mem: a.slurm_mem.clone(),
+        extra: a.sbatch.clone(),
+        submit: !a.dry_run,
+        exe: std::env::current_exe().context("cannot find the fulcrum executable")?,
+    })
+}
+
+/// `fulcrum experiment ... --launcher slurm`: what was written and submitted (or the
+/// script printed, with `--dry-run`).
+fn report_launch(l: &fulcrum_run::experiment::Launch) -> Result<()> {
     let dir = l.dir.display();
     let Some(script) = &l.script else {
         eprintln!("fulcrum experiment: every run in {dir} has finished; the summary: fulcrum experiment --collect {dir}");
@@ -303,8 +309,8 @@ fn request(
 }
 
 /// `fulcrum experiment --worlds gen:N...`: the set's worlds generated and written, each
-/// world's experiment checked, then all run and pooled.
-fn run_set(a: &ExperimentArgs, set: &str, arms: Vec<Arm>) -> Result<()> {
+/// world's experiment checked (then run and pooled, or launched on Slurm).
+fn set_request(a: &ExperimentArgs, set: &str, arms: Vec<Arm>) -> Result<SetRequest> {
     let gen: GenSet = set
         .parse()
         .map_err(|e: GenError| BadRequest(format!("--worlds {}", e.0)))?;
@@ -315,9 +321,9 @@ fn run_set(a: &ExperimentArgs, set: &str, arms: Vec<Arm>) -> Result<()> {
         .out
         .clone()
         .unwrap_or_else(|| PathBuf::from("experiments").join(format!("gen-{}", utc_stamp())));
-    let files: Vec<(String, String)> = worlds
+    let files: Vec<(String, String, u32)> = worlds
         .iter()
-        .map(|w| (w.world.name.clone(), w.text.clone()))
+        .map(|w| (w.world.name.clone(), w.text.clone(), w.fewest_steps))
         .collect();
     let (set_dir, paths) = prepare_set(&dir, &gen.to_string(), &files)?;
     let mut reqs = Vec::with_capacity(worlds.len());
@@ -331,11 +337,9 @@ fn run_set(a: &ExperimentArgs, set: &str, arms: Vec<Arm>) -> Result<()> {
             request,
         });
     }
-    let markdown = fulcrum_run::experiment::run_set(&SetRequest {
+    Ok(SetRequest {
         description: gen.to_string(),
         dir: set_dir,
         worlds: reqs,
-    })?;
-    print!("{markdown}");
-    Ok(())
+    })
 }

@@ -116,7 +116,7 @@ pub fn collected_equals_local(dir: &Path, local: &Path) {
     same_experiment(dir, local);
 }
 
-fn collect(dir: &Path) -> Output {
+pub fn collect(dir: &Path) -> Output {
     fulcrum()
         .args(["experiment", "--collect"])
         .arg(dir)
@@ -305,8 +305,20 @@ fn bad_task_and_collect_requests_are_refused_in_one_sentence() {
             "go with --launcher slurm",
         ),
         (
-            vec!["experiment", "--launcher", "slurm", "--worlds", "gen:2"],
-            "one world's experiment",
+            // Refused before the set's files are written (`missing` stays absent).
+            vec![
+                "experiment",
+                "--worlds",
+                "gen:2",
+                "--launcher",
+                "slurm",
+                "--dry-run",
+                "--slurm-cpus",
+                "0",
+                "--out",
+                m,
+            ],
+            "--slurm-cpus must be at least 1",
         ),
         (
             vec![
@@ -341,4 +353,108 @@ fn bad_task_and_collect_requests_are_refused_in_one_sentence() {
     }
     assert!(!missing.exists());
     assert!(!dir.join("runs").exists());
+}
+
+/// A set of generated worlds launched on Slurm: one array over every (world, arm, seed)
+/// triple, its script run task by task by `bash` as Slurm runs it (with
+/// `SLURM_ARRAY_TASK_ID`), then `--collect` on the set's directory: the pooled table and
+/// `summary.json` equal those of the same set run locally, and a task missing is named
+/// with its world.
+#[test]
+fn a_set_of_worlds_on_slurm_collects_to_the_local_set() {
+    let dir = TempDir::fresh("set-slurm");
+    let local = TempDir::fresh("set-local");
+    let out = fulcrum()
+        .args(SET)
+        .args(["--launcher", "slurm", "--dry-run", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let script = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        script.lines().any(|l| l == "#SBATCH --array=0-3"),
+        "{script}"
+    );
+    // Two worlds x two arms: each world's experiment directory twice.
+    let dirs = script
+        .lines()
+        .find_map(|l| l.strip_prefix("DIRS=("))
+        .unwrap_or_else(|| panic!("no DIRS=( line in\n{script}"));
+    let worlds = ["gen-12x8-t3-o2-s1", "gen-12x8-t3-o2-s2"];
+    for w in worlds {
+        assert_eq!(dirs.matches(&format!("/{w}'")).count(), 2, "{dirs}");
+    }
+    let path = std::fs::read_dir(dir.join("slurm"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|e| e == "sbatch"))
+        .expect("the array script");
+    // Where the script sends Slurm's output (a task whose output cannot open fails).
+    assert!(dir.join("logs").is_dir());
+    let run_task = |i: usize| {
+        let o = std::process::Command::new("bash")
+            .arg(&path)
+            .env("SLURM_ARRAY_TASK_ID", i.to_string())
+            .env("PATH", std::env::var("PATH").unwrap_or_default())
+            .output()
+            .unwrap();
+        assert!(
+            o.status.success(),
+            "task {i}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    for i in 0..3 {
+        run_task(i);
+    }
+    // One task still to run: named with its world, exit 1.
+    let c = collect(&dir);
+    let err = String::from_utf8_lossy(&c.stderr);
+    assert_eq!(c.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("missing: gen-12x8-t3-o2-s2/horizon-potential/seed-1"),
+        "{err}"
+    );
+    run_task(3);
+    let c = collect(&dir);
+    let err = String::from_utf8_lossy(&c.stderr);
+    assert!(c.status.success(), "{err}");
+    assert!(err.contains("4 of 4 runs finished"), "{err}");
+
+    set_collected_equals_local(&dir, &local, &c);
+}
+
+/// A set of two generated worlds, two arms, one seed, 20 updates each.
+pub const SET: &[&str] = &[
+    "experiment",
+    "--worlds",
+    "gen:2",
+    "--seeds",
+    "1",
+    "--arms",
+    "baseline,horizon-potential",
+    "--steps",
+    "20480",
+];
+
+/// `--collect` of the set in `dir` (its output `c`) equals [`SET`] run locally in
+/// `local`: the printed table and `summary.json`.
+pub fn set_collected_equals_local(dir: &Path, local: &Path, c: &Output) {
+    let o = fulcrum()
+        .args(SET)
+        .arg("--out")
+        .arg(local)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        String::from_utf8_lossy(&c.stdout),
+        String::from_utf8_lossy(&o.stdout)
+    );
+    let json = |d: &Path| std::fs::read_to_string(d.join("summary.json")).unwrap();
+    assert_eq!(json(dir), json(local));
+    assert!(json(dir).contains("\"gen-12x8-t3-o2-s2\""), "{}", json(dir));
 }

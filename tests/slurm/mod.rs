@@ -3,7 +3,8 @@
 //! the test, as root, in a directory of its own (`scripts/slurm-node.sh`). The array
 //! runs; one task is killed with `scancel --signal=KILL` mid-run and requeued, and
 //! finishes from its checkpoint; `--collect` equals a local experiment with the same
-//! seeds, bit for bit. Where Slurm is not installed or the test is not root, it fails
+//! seeds, bit for bit; a set of generated worlds runs as one array and collects to
+//! the local set. Where Slurm is not installed or the test is not root, it fails
 //! and says so (CI installs the packages and runs it as root).
 
 use std::path::{Path, PathBuf};
@@ -12,7 +13,9 @@ use std::time::Duration;
 
 use fulcrum_learner::metrics::read_metrics;
 
-use crate::experiment::tasks::{collected_equals_local, script_pairs, EXPERIMENT};
+use crate::experiment::tasks::{
+    collect, collected_equals_local, script_pairs, set_collected_equals_local, EXPERIMENT, SET,
+};
 use crate::util::{free_port, fulcrum, pids_with, wait_until, TempDir};
 
 /// A running single-node cluster; stopped when dropped.
@@ -144,4 +147,35 @@ fn an_array_survives_a_killed_task_and_collects_to_the_local_result() {
     assert!(log.contains("finished baseline/seed-1"), "{log}");
 
     collected_equals_local(&dir, &local);
+}
+
+#[test]
+fn a_set_of_worlds_runs_as_one_array_and_collects_to_the_local_set() {
+    let node = Node::start();
+    let dir = TempDir::fresh("slurm-set");
+    let local = TempDir::fresh("slurm-set-local");
+    let out = fulcrum()
+        .env("SLURM_CONF", &node.conf)
+        .args(SET)
+        .args(["--launcher", "slurm", "--slurm-time", "20:00", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("submitted 4 array tasks"), "{err}");
+    let job = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    wait_until(Duration::from_secs(600), "every task's end", || {
+        node.queued(&job).is_empty()
+    });
+    let c = collect(&dir);
+    let err = String::from_utf8_lossy(&c.stderr);
+    assert!(c.status.success(), "{err}");
+    assert!(err.contains("4 of 4 runs finished"), "{err}");
+    for i in 0..4 {
+        let log = std::fs::read_to_string(dir.join(format!("logs/slurm-{job}_{i}.out")))
+            .unwrap_or_else(|e| panic!("task {i}'s Slurm log: {e}"));
+        assert!(log.contains("finished "), "task {i}: {log}");
+    }
+    set_collected_equals_local(&dir, &local, &c);
 }

@@ -23,7 +23,8 @@
 //! arm's settings under the same directory is refused.
 //!
 //! With `--launcher slurm` the pairs run as a Slurm job array instead ([`launch`],
-//! [`run_task`], [`collect`]: see the `slurm` module).
+//! [`run_task`], [`collect`]: see the `slurm` module); a set of worlds as one array of
+//! its (world, arm, seed) triples ([`launch_set`]).
 //!
 //! The statistics are [`crate::stats`]: episode-pooled success over a trailing
 //! window of `--smooth` updates, a grid of 200 intervals over the budget, the sample
@@ -38,7 +39,10 @@ mod slurm;
 mod summary;
 
 pub use set::{prepare_set, run_set, SetDir, SetRequest, SetWorld};
-pub use slurm::{collect, launch, run_task, Collected, Launch, SlurmOptions, TaskOutcome};
+pub use slurm::{
+    check_options, collect, launch, launch_set, run_task, Collected, Launch, SlurmOptions,
+    TaskOutcome,
+};
 
 use std::path::{Path, PathBuf};
 

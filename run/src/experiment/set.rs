@@ -3,7 +3,8 @@
 //! seed) pairs pooled per arm.
 //!
 //! ```text
-//! DIR/set.toml                  what the set is (its description, its worlds in order)
+//! DIR/set.toml                  what the set is (its description, its worlds in order
+//!                               and the fewest steps each world's task takes)
 //! DIR/worlds/<world>.toml       the world files, as generated
 //! DIR/<world>/                  each world's experiment (see the module above)
 //! DIR/summary.md, summary.json  the pooled table and every pair's outcome
@@ -20,7 +21,14 @@
 //! Pairs are pooled over worlds: the log-rank test does not stratify by world.
 //!
 //! The same command with the same directory resumes, as a single world's experiment
-//! does; another set under the same directory is refused.
+//! does; another set under the same directory is refused. On Slurm the set is one job
+//! array over every world's pairs ([`super::launch_set`]), and `--collect DIR` pools
+//! the finished pairs as a local run of the set does ([`collect_set`]):
+//!
+//! ```text
+//! DIR/slurm/array-<time>.sbatch  task i = the pair (ARMS[i], SEEDS[i]) of DIRS[i]
+//! DIR/logs/slurm-<job>_<task>.out
+//! ```
 
 use std::path::{Path, PathBuf};
 
@@ -28,6 +36,8 @@ use crate::error::{Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::report::{p_text, steps_text};
+use super::slurm::Collected;
+use super::summary::Summary;
 use super::{run_one, ExperimentRequest};
 use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
@@ -68,27 +78,32 @@ pub struct SetDir {
 struct SetSpec {
     set: String,
     worlds: Vec<String>,
+    /// The fewest steps each world's task takes, in the order of `worlds` (absent from
+    /// the files of sets made before it was recorded).
+    #[serde(default)]
+    fewest_steps: Vec<u32>,
 }
 
-/// Lock the set's directory and write its `set.toml` and world files (`(name, text)`
-/// in order); returns the directory and each world file's path. A directory that holds
-/// another set, or other files under the same names, is refused.
+/// Lock the set's directory and write its `set.toml` and world files (`(name, text,
+/// fewest steps)` in order); returns the directory and each world file's path. A
+/// directory that holds another set, or other files under the same names, is refused.
 pub fn prepare_set(
     dir: &Path,
     description: &str,
-    files: &[(String, String)],
+    files: &[(String, String, u32)],
 ) -> Result<(SetDir, Vec<PathBuf>)> {
     std::fs::create_dir_all(dir.join("worlds"))
         .with_context(|| format!("cannot create {}", dir.display()))?;
     let lock = lock_for_run(dir)?;
     let spec = SetSpec {
         set: description.to_string(),
-        worlds: files.iter().map(|(n, _)| n.clone()).collect(),
+        worlds: files.iter().map(|(n, _, _)| n.clone()).collect(),
+        fewest_steps: files.iter().map(|f| f.2).collect(),
     };
     let spec_path = dir.join("set.toml");
     if spec_path.exists() {
         let old: SetSpec = super::read_toml(&spec_path, "a set file")?;
-        if old != spec {
+        if (&old.set, &old.worlds) != (&spec.set, &spec.worlds) {
             return bad(format!(
                 "{} holds the set {}, not {description}: a different set needs a directory of its own",
                 dir.display(),
@@ -97,7 +112,7 @@ pub fn prepare_set(
         }
     }
     let mut paths = Vec::with_capacity(files.len());
-    for (name, text) in files {
+    for (name, text, _) in files {
         let path = dir.join("worlds").join(format!("{name}.toml"));
         match std::fs::read_to_string(&path) {
             Ok(old) if old != *text => {
@@ -191,20 +206,46 @@ pub fn run_set(req: &SetRequest) -> Result<String> {
         }
         summaries.push(done.summary);
     }
-    let first = req
+    let worlds: Vec<(String, u32)> = req
         .worlds
+        .iter()
+        .map(|w| (w.name.clone(), w.fewest_steps))
+        .collect();
+    let seeds = req.worlds.first().map_or(0, |w| w.request.seeds);
+    let markdown = pool(&req.description, &req.dir.path, &worlds, seeds, &summaries)?;
+    let dir = &req.dir.path;
+    if !failed.is_empty() {
+        crate::fail!(
+            "runs failed on {} of the {n} worlds ({}); their logs are under {}/<world>/logs; run the same command again to retry them",
+            failed.len(),
+            failed.join(", "),
+            dir.display()
+        );
+    }
+    Ok(markdown)
+}
+
+/// The worlds' summaries (in the set's order) pooled pair by pair into
+/// `dir/summary.{md,json}`; returns the Markdown.
+fn pool(
+    description: &str,
+    dir: &Path,
+    worlds: &[(String, u32)],
+    seeds: u64,
+    summaries: &[Summary],
+) -> Result<String> {
+    let first = summaries
         .first()
-        .map(|w| &w.request)
         .ok_or_else(|| BadRequest("the set has no world".into()))?;
     let budget = first.steps as f64;
     let mut arms = Vec::new();
     for (k, arm) in first.arms.iter().enumerate() {
         let mut pairs = Vec::new();
-        for (w, s) in req.worlds.iter().zip(&summaries) {
+        for ((world, _), s) in worlds.iter().zip(summaries) {
             let Some(a) = s.arms.get(k) else { continue };
             for seed in &a.per_seed {
                 pairs.push(Pair {
-                    world: w.name.clone(),
+                    world: world.clone(),
                     seed: seed.seed,
                     steps_to_threshold: seed.steps_to_threshold,
                     trap_updates: seed.trap_updates,
@@ -215,34 +256,66 @@ pub fn run_set(req: &SetRequest) -> Result<String> {
     }
     let comparisons = compare_all(&arms, budget);
     let summary = SetSummary {
-        set: req.description.clone(),
-        worlds: req
-            .worlds
-            .iter()
-            .map(|w| (w.name.clone(), w.fewest_steps))
-            .collect(),
-        seeds: first.seeds,
+        set: description.to_string(),
+        worlds: worlds.to_vec(),
+        seeds,
         steps: first.steps,
         threshold: first.threshold,
         arms,
         comparisons,
     };
-    let markdown = markdown(&summary, first.smooth);
-    let dir = &req.dir.path;
+    let markdown = markdown(&summary, first.smooth_updates);
     let json = serde_json::to_string_pretty(&summary).context("cannot encode summary.json")?;
     fulcrum_contracts::fsio::write_atomic(&dir.join("summary.json"), json.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.json").display()))?;
     fulcrum_contracts::fsio::write_atomic(&dir.join("summary.md"), markdown.as_bytes())
         .with_context(|| format!("cannot write {}", dir.join("summary.md").display()))?;
-    if !failed.is_empty() {
-        crate::fail!(
-            "runs failed on {} of the {n} worlds ({}); their logs are under {}/<world>/logs; run the same command again to retry them",
-            failed.len(),
-            failed.join(", "),
-            dir.display()
-        );
-    }
     Ok(markdown)
+}
+
+/// `fulcrum experiment --collect DIR` on a set's directory: every world's experiment
+/// collected ([`super::slurm::collect_one`]: its summary and plots written), then the
+/// pairs pooled as [`run_set`] pools them; the pairs not finished are named with their
+/// world.
+pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
+    let spec: SetSpec = super::read_toml(&dir.join("set.toml"), "a set file")?;
+    if spec.fewest_steps.len() != spec.worlds.len() {
+        return bad(format!(
+            "{} was written before a set recorded its worlds' fewest steps: run the set's command again (without --launcher) to pool it",
+            dir.join("set.toml").display()
+        ));
+    }
+    let _lock = lock_for_run(dir)?;
+    let mut all = Collected::default();
+    let mut summaries = Vec::with_capacity(spec.worlds.len());
+    let mut seeds = 0;
+    for name in &spec.worlds {
+        let (c, s) = super::slurm::collect_one(&dir.join(name), threshold, smooth)
+            .with_context(|| format!("world {name}"))?;
+        all.finished += c.finished;
+        all.missing
+            .extend(c.missing.into_iter().map(|m| format!("{name}/{m}")));
+        all.failed.extend(
+            c.failed
+                .into_iter()
+                .map(|(m, why)| (format!("{name}/{m}"), why)),
+        );
+        all.unfinished.extend(
+            c.unfinished
+                .into_iter()
+                .map(|(m, k)| (format!("{name}/{m}"), k)),
+        );
+        seeds = s.arms.first().map_or(seeds, |a| a.seeds as u64);
+        summaries.push(s);
+    }
+    let worlds: Vec<(String, u32)> = spec
+        .worlds
+        .iter()
+        .cloned()
+        .zip(spec.fewest_steps.iter().copied())
+        .collect();
+    all.markdown = pool(&spec.set, dir, &worlds, seeds, &summaries)?;
+    Ok(all)
 }
 
 /// An arm's pooled numbers.

@@ -5,6 +5,8 @@
 //! ```text
 //! DIR/experiment.toml                 as for a local experiment (the same checks)
 //! DIR/slurm/array-<time>.sbatch       the array script: task i = (ARMS[i], SEEDS[i])
+//!                                     of the experiment in DIRS[i] (DIR, or for a set
+//!                                     each world's directory under it)
 //! DIR/slurm/status/<arm>-seed-<k>     a task's failure (exit status, time); removed
 //!                                     when the pair finishes
 //! DIR/logs/<arm>-seed-<k>.log         the run's output (appended across requeues)
@@ -34,6 +36,7 @@ use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping, utc_stamp};
 
 use super::schedule::{clear_fresh, last_steps, train_command};
+use super::set::SetRequest;
 use super::{job, prepare, read_spec, state, ExperimentRequest, Job, Spec, State};
 
 /// What the array script asks of Slurm.
@@ -70,9 +73,74 @@ pub struct Launch {
     pub job: Option<String>,
 }
 
+/// One array task: a pair of the experiment in `dir`.
+#[derive(Debug, Clone)]
+struct Task {
+    /// The experiment directory (absolute).
+    dir: PathBuf,
+    arm: String,
+    seed: u64,
+}
+
 /// The experiment directory made ready, then the array script of its unfinished pairs
 /// written and (unless `o.submit` is false) submitted with `sbatch --parsable`.
 pub fn launch(a: &ExperimentRequest, o: &SlurmOptions) -> Result<Launch> {
+    check_options(o)?;
+    let prepared = prepare(a)?;
+    let dir = absolute(&prepared.dir)?;
+    let tasks = unfinished(&prepared.spec, &prepared.jobs, &dir);
+    let title = format!(
+        "{} (arm, seed) pairs of {}, one array task each",
+        tasks.len(),
+        prepared.spec.world
+    );
+    let cpus = o.cpus.unwrap_or(prepared.spec.actors);
+    write_and_submit(&dir, &title, &prepared.spec.world, &tasks, o, cpus)
+}
+
+/// [`launch`] for a set of worlds: every world's experiment directory made ready (as
+/// [`super::run_set`] makes them), then one array of the unfinished (world, arm, seed)
+/// triples of them all, its script and Slurm's logs in the set's directory. `fulcrum
+/// experiment --collect` on the set's directory pools them as the local set does.
+pub fn launch_set(req: &SetRequest, o: &SlurmOptions) -> Result<Launch> {
+    check_options(o)?;
+    let dir = absolute(&req.dir.path)?;
+    let mut tasks = Vec::new();
+    let mut cpus = o.cpus.unwrap_or(1);
+    for w in &req.worlds {
+        let p = prepare(&w.request)?;
+        let d = absolute(&p.dir)?;
+        tasks.extend(unfinished(&p.spec, &p.jobs, &d));
+        cpus = o.cpus.unwrap_or(p.spec.actors);
+    }
+    let title = format!(
+        "{} (world, arm, seed) triples of the set {} ({} worlds), one array task each",
+        tasks.len(),
+        req.description,
+        req.worlds.len()
+    );
+    write_and_submit(&dir, &title, &req.description, &tasks, o, cpus)
+}
+
+fn absolute(dir: &Path) -> Result<PathBuf> {
+    Ok(std::path::absolute(dir).with_context(|| format!("cannot resolve {}", dir.display()))?)
+}
+
+/// The pairs of `jobs` that have not finished, as tasks on the experiment in `dir`.
+fn unfinished(spec: &Spec, jobs: &[Job], dir: &Path) -> Vec<Task> {
+    jobs.iter()
+        .filter(|j| state(&j.dir, spec.steps) != State::Done)
+        .map(|j| Task {
+            dir: dir.to_path_buf(),
+            arm: spec.arms[j.arm].name.clone(),
+            seed: j.seed,
+        })
+        .collect()
+}
+
+/// The options checked, as [`launch`] and [`launch_set`] check them before anything is
+/// written (a set's caller checks them before it writes the set's files).
+pub fn check_options(o: &SlurmOptions) -> Result<()> {
     if let Some(c) = o.cpus {
         if c == 0 {
             return bad("--slurm-cpus must be at least 1");
@@ -102,35 +170,36 @@ pub fn launch(a: &ExperimentRequest, o: &SlurmOptions) -> Result<Launch> {
             "--sbatch '{e}' is not an sbatch option (write it as after '#SBATCH ', e.g. --account=rl)"
         ));
     }
-    let prepared = prepare(a)?;
-    let dir = std::path::absolute(&prepared.dir)
-        .with_context(|| format!("cannot resolve {}", prepared.dir.display()))?;
-    let cwd = std::env::current_dir().context("cannot read the working directory")?;
-    let todo: Vec<&Job> = prepared
-        .jobs
-        .iter()
-        .filter(|j| state(&j.dir, prepared.spec.steps) != State::Done)
-        .collect();
-    if todo.is_empty() {
+    Ok(())
+}
+
+/// The array script of `tasks` written under `dir/slurm/` and submitted (unless
+/// `o.submit` is false); nothing written when no task is left.
+fn write_and_submit(
+    dir: &Path,
+    title: &str,
+    name: &str,
+    tasks: &[Task],
+    o: &SlurmOptions,
+    cpus: usize,
+) -> Result<Launch> {
+    if tasks.is_empty() {
         return Ok(Launch {
-            dir,
+            dir: dir.to_path_buf(),
             script: None,
             text: String::new(),
             tasks: 0,
             job: None,
         });
     }
+    let cwd = std::env::current_dir().context("cannot read the working directory")?;
     let slurm_dir = dir.join("slurm");
-    std::fs::create_dir_all(&slurm_dir)
-        .with_context(|| format!("cannot create {}", slurm_dir.display()))?;
+    // Slurm opens each task's output in `logs/` and fails the task where it is missing.
+    for d in [&slurm_dir, &dir.join("logs")] {
+        std::fs::create_dir_all(d).with_context(|| format!("cannot create {}", d.display()))?;
+    }
     let path = slurm_dir.join(format!("array-{}.sbatch", utc_stamp()));
-    let text = script(
-        &prepared.spec,
-        &todo,
-        (&dir, &path, &cwd),
-        o,
-        o.cpus.unwrap_or(prepared.spec.actors),
-    );
+    let text = script(title, name, tasks, (dir, &path, &cwd), o, cpus);
     fulcrum_contracts::fsio::write_atomic(&path, text.as_bytes())
         .with_context(|| format!("cannot write {}", path.display()))?;
     let mut job = None;
@@ -158,10 +227,10 @@ pub fn launch(a: &ExperimentRequest, o: &SlurmOptions) -> Result<Launch> {
         job = Some(id.split(';').next().unwrap_or("").to_string());
     }
     Ok(Launch {
-        dir,
+        dir: dir.to_path_buf(),
         script: Some(path),
         text,
-        tasks: todo.len(),
+        tasks: tasks.len(),
         job,
     })
 }
@@ -171,10 +240,12 @@ fn quote(s: &str) -> String {
     format!("'{}'", s.replace('\'', r"'\''"))
 }
 
-/// The array script: one task per pair of `todo`.
+/// The array script: task i runs the pair (ARMS[i], SEEDS[i]) of the experiment in
+/// DIRS[i].
 fn script(
-    spec: &Spec,
-    todo: &[&Job],
+    title: &str,
+    name: &str,
+    tasks: &[Task],
     (dir, path, cwd): (&Path, &Path, &Path),
     o: &SlurmOptions,
     cpus: usize,
@@ -182,19 +253,16 @@ fn script(
     let d = dir.display().to_string();
     let mut t = String::from("#!/bin/bash\n");
     t += &format!(
-        "# fulcrum experiment on Slurm: {} (arm, seed) pairs of {}, one array task each.\n\
+        "# fulcrum experiment on Slurm: {title}.\n\
          # Edit the #SBATCH lines as your cluster needs, then submit with\n\
          #   sbatch {}\n\
          # A task that Slurm requeues (preemption, a node failure) continues its run from\n\
          # its checkpoint. Once every task has ended:\n\
          #   fulcrum experiment --collect {}\n",
-        todo.len(),
-        spec.world,
         quote(&path.display().to_string()),
         quote(&d),
     );
-    let name: String = spec
-        .world
+    let name: String = name
         .rsplit('/')
         .next()
         .unwrap_or("world")
@@ -209,7 +277,7 @@ fn script(
         .collect();
     let mut lines = vec![
         format!("--job-name=fulcrum-{name}"),
-        format!("--array=0-{}", todo.len() - 1),
+        format!("--array=0-{}", tasks.len() - 1),
         "--ntasks=1".to_string(),
         format!("--cpus-per-task={cpus}"),
         format!("--time={}", o.time),
@@ -228,16 +296,20 @@ fn script(
     for l in lines {
         t += &format!("#SBATCH {l}\n");
     }
-    let arms: Vec<String> = todo.iter().map(|j| quote(&spec.arms[j.arm].name)).collect();
-    let seeds: Vec<String> = todo.iter().map(|j| j.seed.to_string()).collect();
+    let list = |f: &dyn Fn(&Task) -> String| -> String {
+        tasks.iter().map(f).collect::<Vec<_>>().join(" ")
+    };
     t += "set -eu\n";
-    t += &format!("ARMS=({})\n", arms.join(" "));
-    t += &format!("SEEDS=({})\n", seeds.join(" "));
+    t += &format!(
+        "DIRS=({})\n",
+        list(&|k| quote(&k.dir.display().to_string()))
+    );
+    t += &format!("ARMS=({})\n", list(&|k| quote(&k.arm)));
+    t += &format!("SEEDS=({})\n", list(&|k| k.seed.to_string()));
     t += "i=${SLURM_ARRAY_TASK_ID:?submit this script with sbatch, which sets SLURM_ARRAY_TASK_ID}\n";
     t += &format!(
-        "exec {} experiment --task {} --arm \"${{ARMS[$i]}}\" --seed \"${{SEEDS[$i]}}\"\n",
+        "exec {} experiment --task \"${{DIRS[$i]}}\" --arm \"${{ARMS[$i]}}\" --seed \"${{SEEDS[$i]}}\"\n",
         quote(&o.exe.display().to_string()),
-        quote(&d)
     );
     t
 }
@@ -406,8 +478,22 @@ pub struct Collected {
 }
 
 /// The summary and plots of the experiment in `dir` from every finished pair, as a
-/// local experiment writes them, and where the other pairs stand.
+/// local experiment writes them, and where the other pairs stand. On a set's directory
+/// (`set.toml`), every world's experiment collected and the pairs pooled as
+/// [`super::run_set`] pools them.
 pub fn collect(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
+    if dir.join("set.toml").exists() {
+        return super::set::collect_set(dir, threshold, smooth);
+    }
+    collect_one(dir, threshold, smooth).map(|(c, _)| c)
+}
+
+/// [`collect`] of one world's experiment, with its summary.
+pub(super) fn collect_one(
+    dir: &Path,
+    threshold: f64,
+    smooth: usize,
+) -> Result<(Collected, super::summary::Summary)> {
     let Some(spec) = read_spec(dir)? else {
         return bad(format!(
             "{} is not an experiment directory (it has no experiment.toml)",
@@ -441,5 +527,5 @@ pub fn collect(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
             State::Fresh => c.missing.push(name),
         }
     }
-    Ok(c)
+    Ok((c, summary))
 }
