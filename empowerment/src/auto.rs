@@ -109,39 +109,6 @@ fn propagate_step<const T: usize>(
         });
 }
 
-/// [`propagate_step`] for any number of tools up to 16.
-fn propagate_step_any(
-    t: usize,
-    succ: &[u32],
-    na: usize,
-    cur: &[u64],
-    next: &mut [u64],
-    cnt: &mut [u8],
-) {
-    next.par_chunks_exact_mut(t)
-        .zip(cnt.par_chunks_exact_mut(t))
-        .with_min_len(1024)
-        .enumerate()
-        .for_each(|(s, (dst, c))| {
-            let row = &succ[s * na..s * na + na];
-            let mut acc = [0u64; 16];
-            let acc = &mut acc[..t];
-            for &a in &SHARED {
-                let r = row[a as usize] as usize * t;
-                for (d, x) in acc.iter_mut().zip(&cur[r..r + t]) {
-                    *d |= *x;
-                }
-            }
-            for (j, d) in acc.iter_mut().enumerate() {
-                *d |= cur[row[SELECT0 as usize + j] as usize * t + j];
-            }
-            dst.copy_from_slice(acc);
-            for (c, x) in c.iter_mut().zip(acc.iter()) {
-                *c = x.count_ones() as u8;
-            }
-        });
-}
-
 /// log2 of the counts a set of at most 64 projections can have, as `f64::log2` gives them.
 fn log2_table() -> [f64; 65] {
     let mut t = [0.0; 65];
@@ -190,13 +157,16 @@ impl Engine<'_> {
         // counts[(h - 1) n T + s T + j] = |R^j_h(s)|.
         let mut counts = vec![0u8; hmax * n * t];
         for step in counts.chunks_mut(n * t) {
-            match t {
-                1 => propagate_step::<1>(succ, na, &cur, &mut next, step),
-                2 => propagate_step::<2>(succ, na, &cur, &mut next, step),
-                3 => propagate_step::<3>(succ, na, &cur, &mut next, step),
-                4 => propagate_step::<4>(succ, na, &cur, &mut next, step),
-                _ => propagate_step_any(t, succ, na, &cur, &mut next, step),
+            // One instance per tool count (`T` words a state, known to the compiler).
+            macro_rules! by_tools {
+                ($($n:literal)*) => {
+                    match t {
+                        $($n => propagate_step::<$n>(succ, na, &cur, &mut next, step),)*
+                        _ => unreachable!("1 to 16 tools, checked above"),
+                    }
+                };
             }
+            by_tools!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16);
             std::mem::swap(&mut cur, &mut next);
         }
         let log2 = log2_table();

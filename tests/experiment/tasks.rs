@@ -102,8 +102,14 @@ pub fn collected_equals_local(dir: &Path, local: &Path) {
     let err = String::from_utf8_lossy(&c.stderr);
     assert!(c.status.success(), "{err}");
     assert!(err.contains("4 of 4 runs finished"), "{err}");
+    prints_as_local(EXPERIMENT, local, &c);
+    same_experiment(dir, local);
+}
+
+/// The experiment `args` run locally in `local` prints what `--collect` printed (`c`).
+fn prints_as_local(args: &[&str], local: &Path, c: &Output) {
     let o = fulcrum()
-        .args(EXPERIMENT)
+        .args(args)
         .arg("--out")
         .arg(local)
         .output()
@@ -113,7 +119,16 @@ pub fn collected_equals_local(dir: &Path, local: &Path) {
         String::from_utf8_lossy(&c.stdout),
         String::from_utf8_lossy(&o.stdout)
     );
-    same_experiment(dir, local);
+}
+
+/// The experiment `args` launched on Slurm into `dir` with `--dry-run`.
+fn dry_run(args: &[&str], dir: &Path) -> Output {
+    fulcrum()
+        .args(args)
+        .args(["--launcher", "slurm", "--dry-run", "--out"])
+        .arg(dir)
+        .output()
+        .unwrap()
 }
 
 pub fn collect(dir: &Path) -> Output {
@@ -253,12 +268,7 @@ fn array_tasks_run_by_hand_and_collected_equal_the_local_experiment() {
 #[test]
 fn bad_task_and_collect_requests_are_refused_in_one_sentence() {
     let dir = TempDir::fresh("tasks-bad");
-    let out = fulcrum()
-        .args(EXPERIMENT)
-        .args(["--launcher", "slurm", "--dry-run", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
+    let out = dry_run(EXPERIMENT, &dir);
     assert!(out.status.success());
     let missing = dir.join("nowhere");
     let d = dir.to_str().unwrap();
@@ -364,12 +374,7 @@ fn bad_task_and_collect_requests_are_refused_in_one_sentence() {
 fn a_set_of_worlds_on_slurm_collects_to_the_local_set() {
     let dir = TempDir::fresh("set-slurm");
     let local = TempDir::fresh("set-local");
-    let out = fulcrum()
-        .args(SET)
-        .args(["--launcher", "slurm", "--dry-run", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
+    let out = dry_run(SET, &dir);
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "{err}");
     let script = String::from_utf8_lossy(&out.stdout).to_string();
@@ -443,17 +448,7 @@ pub const SET: &[&str] = &[
 /// `--collect` of the set in `dir` (its output `c`) equals [`SET`] run locally in
 /// `local`: the printed table and `summary.json`.
 pub fn set_collected_equals_local(dir: &Path, local: &Path, c: &Output) {
-    let o = fulcrum()
-        .args(SET)
-        .arg("--out")
-        .arg(local)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert_eq!(
-        String::from_utf8_lossy(&c.stdout),
-        String::from_utf8_lossy(&o.stdout)
-    );
+    prints_as_local(SET, local, c);
     let json = |d: &Path| std::fs::read_to_string(d.join("summary.json")).unwrap();
     assert_eq!(json(dir), json(local));
     assert!(json(dir).contains("\"gen-12x8-t3-o2-s2\""), "{}", json(dir));

@@ -61,6 +61,30 @@ impl Node {
         out
     }
 
+    /// The experiment `args` launched on this node into `dir` as an array of `tasks`
+    /// tasks; its job id.
+    fn submit(&self, args: &[&str], dir: &Path, tasks: usize) -> String {
+        let out = fulcrum()
+            .env("SLURM_CONF", &self.conf)
+            .args(args)
+            .args(["--launcher", "slurm", "--slurm-time", "20:00", "--out"])
+            .arg(dir)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(
+            err.contains(&format!("submitted {tasks} array tasks")),
+            "{err}"
+        );
+        let job = String::from_utf8_lossy(&out.stdout).trim().to_string();
+        assert!(
+            !job.is_empty() && job.chars().all(|c| c.is_ascii_digit()),
+            "sbatch's job id: '{job}'; {err}"
+        );
+        job
+    }
+
     /// The tasks of `job` that are still in the queue, as `<id> <state>` lines.
     fn queued(&self, job: &str) -> String {
         let out = self.run("squeue", &["-h", "-j", job, "-o", "%i %T"]);
@@ -85,20 +109,7 @@ fn an_array_survives_a_killed_task_and_collects_to_the_local_result() {
     let dir = TempDir::fresh("slurm-exp");
     let local = TempDir::fresh("slurm-local");
 
-    let out = fulcrum()
-        .env("SLURM_CONF", &node.conf)
-        .args(EXPERIMENT)
-        .args(["--launcher", "slurm", "--slurm-time", "20:00", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    let job = String::from_utf8_lossy(&out.stdout).trim().to_string();
-    assert!(
-        !job.is_empty() && job.chars().all(|c| c.is_ascii_digit()),
-        "sbatch's job id: '{job}'; {err}"
-    );
+    let job = node.submit(EXPERIMENT, &dir, 4);
     let script_file = std::fs::read_dir(dir.join("slurm"))
         .unwrap()
         .flatten()
@@ -154,17 +165,7 @@ fn a_set_of_worlds_runs_as_one_array_and_collects_to_the_local_set() {
     let node = Node::start();
     let dir = TempDir::fresh("slurm-set");
     let local = TempDir::fresh("slurm-set-local");
-    let out = fulcrum()
-        .env("SLURM_CONF", &node.conf)
-        .args(SET)
-        .args(["--launcher", "slurm", "--slurm-time", "20:00", "--out"])
-        .arg(&dir)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "{err}");
-    assert!(err.contains("submitted 4 array tasks"), "{err}");
-    let job = String::from_utf8_lossy(&out.stdout).trim().to_string();
+    let job = node.submit(SET, &dir, 4);
     wait_until(Duration::from_secs(600), "every task's end", || {
         node.queued(&job).is_empty()
     });
