@@ -6,7 +6,7 @@
 //! additive b_t = E(s_{t+1}) (the paper's equation (1)); potential
 //! gamma E(s_{t+1}) - E(s_t); horizon-potential the same with Phi = sum over h of E^h;
 //! first-visit E(s_{t+1}) once per inventory and episode; count 1 / sqrt(N(s_{t+1})).
-//! E is the exact table of the empowerment service (`Engine::lookup_values`): E^{h_e}
+//! E is the exact table of the empowerment service (`request::lookup_table`): E^{h_e}
 //! where the tool is held, E^{h_u} elsewhere. Each environment's state id is followed
 //! through the state space's successor table, so a lookup is one array read (in a
 //! stochastic world the outcome drawn is looked up by its state instead).
@@ -159,9 +159,10 @@ impl Shaper {
         let beta;
         let (values, summary) = if form.uses_empowerment() {
             let set = request::objects_or_default(w, s.objects).py_err()?;
-            let tool = request::tool_sel(w, engine, s.tool, &set).py_err()?;
-            let values = py
-                .detach(|| engine.lookup_values(tool, &set, hu, he, form.horizon_sum()))
+            let (tool, values) = py
+                .detach(|| {
+                    request::lookup_table(w, engine, s.tool, &set, hu, he, form.horizon_sum())
+                })
                 .py_err()?;
             // The largest potential sets horizon-potential's default beta, as in training.
             let max_phi = values.iter().copied().fold(0.0f32, f32::max) as f64;
