@@ -8,10 +8,15 @@
 //! The index packs each state into a `u64` when the world's fields fit in 64 bits (agent
 //! cell, mode, inventory bits, 2 bits per tree/wall/door, a cell index per boulder):
 //! keys a third the size of the 38-byte state make the look-ups, which are bound by
-//! memory latency, faster. Other worlds key by the whole state.
+//! memory latency, faster. Other worlds key by the whole state. Where every field's
+//! range multiplied gives at most 2^20 keys (small worlds; every layout of the built-in
+//! families: 9,600 keys for a toolbox layout with a tree, 259,200 with a boulder), the
+//! key is that mixed-radix number and the index a direct table of ids: one array read a
+//! look-up instead of a hash probe (a third off enumerating a toolbox layout).
 //!
 //! Memory: `states` (38 B each), the successor table (`4 |A|` B each) and the index
-//! (16 to 60 B each): at most `100 + 4 |A|` bytes per state.
+//! (16 to 60 B each, or a direct table of 4 B a key, 4 MiB at most): about
+//! `100 + 4 |A|` bytes per state.
 //!
 //! A stochastic world (`fulcrum_world::chance`) is enumerated over every outcome with
 //! positive probability, and keeps its transition distributions as well: for state s
@@ -120,6 +125,35 @@ impl Packer {
         Some(k)
     }
 
+    /// How many keys [`Packer::dense_trusted`] can give: every field's range multiplied.
+    fn dense_len(&self) -> u64 {
+        let mut n = (self.cells as u64 * (self.max_mode as u64 + 1)) << self.tools;
+        for &(_, max, _) in &self.objects {
+            n = n.saturating_mul(max as u64 + 1);
+        }
+        n
+    }
+
+    /// The state's key in mixed radix (cell and mode, inventory bits, then each object's
+    /// value over its range): dense, `0..dense_len()`, for a direct table. Fields must be
+    /// in range ([`Packer::pack`] checks them).
+    #[inline]
+    fn dense_trusted(&self, s: &State) -> usize {
+        let mut k = ((s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
+            + s.mode as u64)
+            << self.tools
+            | s.inventory as u64;
+        for (&(_, max, boulder), &v) in self.objects.iter().zip(&s.objects) {
+            let v = if boulder && v == fulcrum_world::BOULDER_DESTROYED {
+                self.cells
+            } else {
+                v
+            };
+            k = k * (max as u64 + 1) + v as u64;
+        }
+        k as usize
+    }
+
     /// [`Packer::pack`] without the range checks, for states the dynamics made.
     #[inline]
     fn pack_trusted(&self, s: &State) -> u64 {
@@ -138,9 +172,18 @@ impl Packer {
     }
 }
 
+/// Key spaces up to this many keys get a direct table (4 bytes a key: 4 MiB at most).
+const DENSE_KEYS: u64 = 1 << 20;
+
+/// No id in a direct table's slot.
+const NO_ID: u32 = u32::MAX;
+
 /// State -> id.
 #[derive(Debug)]
 enum Index {
+    /// A direct table over the dense keys ([`Packer::dense_trusted`]), where they are
+    /// few: one array read a look-up (small worlds, a family's layouts).
+    Dense(Packer, Vec<u32>),
     Packed(Packer, FastMap<u64, u32>),
     Full(FastMap<State, u32>),
 }
@@ -148,6 +191,10 @@ enum Index {
 impl Index {
     fn new(world: &World) -> Index {
         match Packer::new(world) {
+            Some(p) if p.dense_len() <= DENSE_KEYS => {
+                let n = p.dense_len() as usize;
+                Index::Dense(p, vec![NO_ID; n])
+            }
             Some(p) => Index::Packed(p, FastMap::default()),
             None => Index::Full(FastMap::default()),
         }
@@ -156,8 +203,21 @@ impl Index {
     #[inline]
     fn get(&self, s: &State) -> Option<u32> {
         match self {
+            Index::Dense(p, t) => {
+                p.pack(s)?;
+                let id = t[p.dense_trusted(s)];
+                (id != NO_ID).then_some(id)
+            }
             Index::Packed(p, m) => m.get(&p.pack(s)?).copied(),
             Index::Full(m) => m.get(s).copied(),
+        }
+    }
+
+    /// Bytes held, for `states` states.
+    fn bytes(&self, states: usize) -> usize {
+        match self {
+            Index::Dense(_, t) => t.len() * 4,
+            _ => states * StateIndex::BYTES_PER_STATE,
         }
     }
 
@@ -165,6 +225,16 @@ impl Index {
     #[inline]
     fn get_or_insert(&mut self, s: &State, next: u32) -> (u32, bool) {
         match self {
+            Index::Dense(p, t) => {
+                debug_assert!(p.pack(s).is_some());
+                let slot = &mut t[p.dense_trusted(s)];
+                if *slot == NO_ID {
+                    *slot = next;
+                    (next, true)
+                } else {
+                    (*slot, false)
+                }
+            }
             Index::Packed(p, m) => {
                 debug_assert_eq!(p.pack(s), Some(p.pack_trusted(s)));
                 let k = p.pack_trusted(s);
@@ -182,6 +252,7 @@ impl Index {
 
     fn reserve(&mut self, n: usize) {
         match self {
+            Index::Dense(..) => {}
             Index::Packed(_, m) => m.reserve(n),
             Index::Full(m) => m.reserve(n),
         }
@@ -197,9 +268,15 @@ pub struct StateIndex {
 }
 
 impl StateIndex {
-    /// Bytes a state costs in the index (a hash map entry of a packed key and an id, with
-    /// the map's spare room).
+    /// Bytes a state costs in a hashed index (a hash map entry of a packed key and an
+    /// id, with the map's spare room); a direct table costs 4 bytes a key instead
+    /// ([`StateIndex::bytes`]).
     pub const BYTES_PER_STATE: usize = 24;
+
+    /// Bytes the index holds.
+    pub fn bytes(&self) -> usize {
+        self.index.bytes(self.len)
+    }
 
     /// The id of a state, if it is in the space.
     pub fn id(&self, s: &State) -> Option<u32> {
@@ -448,7 +525,7 @@ impl StateSpace {
     }
 
     /// Only the index from states to ids, the rest dropped: what answering by state id
-    /// needs, at about [`StateIndex::BYTES_PER_STATE`] bytes a state.
+    /// needs ([`StateIndex::bytes`]).
     pub fn into_index(self) -> StateIndex {
         let len = self.states.len();
         StateIndex {
@@ -472,13 +549,23 @@ mod tests {
 
     #[test]
     fn every_state_finds_its_own_id_and_garbage_finds_none() {
-        for name in ["exp2", "exp3"] {
+        // exp2's keys are too many for a direct table (4 tools, a boulder and a door),
+        // exp3's are not: both kinds of index.
+        for (name, dense) in [("exp2", false), ("exp3", true)] {
             let w = load_world(name).unwrap();
             let sp = StateSpace::enumerate(&w, &Limits::default()).unwrap();
-            assert!(
-                matches!(sp.index, Index::Packed(..)),
-                "{name} fits in 64 bits"
-            );
+            match &sp.index {
+                Index::Dense(p, t) => {
+                    assert!(dense, "{name}: a direct table");
+                    assert_eq!(t.len() as u64, p.dense_len());
+                    assert!(t.len() as u64 <= DENSE_KEYS);
+                }
+                Index::Packed(p, _) => {
+                    assert!(!dense, "{name}: hashed");
+                    assert!(p.dense_len() > DENSE_KEYS);
+                }
+                Index::Full(_) => panic!("{name} fits in 64 bits"),
+            }
             for (i, s) in sp.states().iter().enumerate() {
                 assert_eq!(sp.id(s), Some(i as u32));
             }

@@ -96,9 +96,10 @@ fn the_cache_drops_the_oldest_layouts_and_keeps_the_first() {
             horizon_unequipped: HU,
             horizon_equipped: HE,
             horizon_sum: true,
-            // Room for a few layouts beyond the kept one (a layout is ~11,600 states
-            // of 28 bytes).
-            cache_bytes: 1 << 20,
+            // Room for one layout beyond the kept one, at most (a tree's table is
+            // ~46 KB: 1,990 values and a direct index of 9,600 keys; a boulder's
+            // ~1.2 MB), so every layout made evicts the one before.
+            cache_bytes: 60 << 10,
             keep: 1,
         },
     )

@@ -9,7 +9,7 @@
 //! and the table in one propagation: [`crate::auto`]; a few ms for the median `toolbox`
 //! layout, tens of ms for one with a pushable boulder; `BENCHMARKS.md`), and kept: the
 //! values (4 bytes a state) and the index from states to ids
-//! ([`crate::StateIndex::BYTES_PER_STATE`] a state), nothing else. The training
+//! ([`crate::StateIndex::bytes`]), nothing else. The training
 //! layouts of a run on N layouts are made before the service says it is ready and never
 //! dropped, so actors never wait on a table; other layouts (a run on every layout,
 //! held-out layouts) are dropped oldest first once the tables outgrow `cache_bytes`.
@@ -60,7 +60,7 @@ struct LayoutTable {
 
 impl LayoutTable {
     fn bytes(&self) -> usize {
-        self.values.len() * (4 + StateIndex::BYTES_PER_STATE) + self.visits.len() * 4
+        self.values.len() * 4 + self.index.bytes() + self.visits.len() * 4
     }
 }
 
