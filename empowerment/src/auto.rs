@@ -36,7 +36,7 @@
 use fulcrum_world::{ObjectSet, MAX_HORIZON, SELECT0};
 use rayon::prelude::*;
 
-use crate::engine::{select, Engine, ToolSel};
+use crate::engine::{normal_mean, select, Engine, ToolSel};
 use crate::propagate::Projection;
 
 /// Tool selection and the selected tool's table (see the module docs).
@@ -176,23 +176,15 @@ impl Engine<'_> {
         let column: Vec<f64> = (0..t)
             .map(|j| {
                 let tool = ToolSel::Tool(j);
-                let sum: f64 = normal
-                    .iter()
-                    .map(|&i| {
-                        let s = i as usize;
-                        let h = if tool.held(&states[s]) {
-                            hz.select_equipped
-                        } else {
-                            hz.select_unequipped
-                        };
-                        log2[count(h, s, j) as usize]
-                    })
-                    .sum();
-                if normal.is_empty() {
-                    0.0
-                } else {
-                    sum / normal.len() as f64
-                }
+                normal_mean(normal.iter().map(|&i| {
+                    let s = i as usize;
+                    let h = if tool.held(&states[s]) {
+                        hz.select_equipped
+                    } else {
+                        hz.select_unequipped
+                    };
+                    log2[count(h, s, j) as usize]
+                }))
             })
             .collect();
         let tool = select(column.iter().copied());

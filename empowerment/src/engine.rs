@@ -103,6 +103,18 @@ pub fn select(column: impl IntoIterator<Item = f64>) -> Option<usize> {
     best.map(|(j, _)| j)
 }
 
+/// A matrix entry from its values over the normal states, in their order: their mean
+/// (summed in that order), 0 where there is none.
+pub(crate) fn normal_mean(values: impl ExactSizeIterator<Item = f64>) -> f64 {
+    let n = values.len();
+    let sum: f64 = values.sum();
+    if n == 0 {
+        0.0
+    } else {
+        sum / n as f64
+    }
+}
+
 /// Values over the map for one inventory: `values[y][x]`, None where that state does not
 /// exist.
 #[derive(Clone, Debug, PartialEq)]
@@ -387,19 +399,10 @@ impl<'w> Engine<'w> {
                     self.enumerate_counts(&normal, &actions, &columns[c], &horizons)?
                 }
             };
-            let sum: f64 = normal
-                .iter()
-                .enumerate()
-                .map(|(k, &i)| {
-                    let held = tool.held(self.space.state(i));
-                    (counts[held as usize][k] as f64).log2()
-                })
-                .sum();
-            Ok(if normal.is_empty() {
-                0.0
-            } else {
-                sum / normal.len() as f64
-            })
+            Ok(normal_mean(normal.iter().enumerate().map(|(k, &i)| {
+                let held = tool.held(self.space.state(i));
+                (counts[held as usize][k] as f64).log2()
+            })))
         };
         // Small spaces: one entry per thread beats splitting each propagation step (whose
         // fork-join costs more than the step). Large ones: one table at a time, each step

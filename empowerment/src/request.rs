@@ -109,7 +109,13 @@ pub fn tool_sel(
     text: Option<&str>,
     set: &ObjectSet,
 ) -> Result<ToolSel> {
-    Ok(match tool_choice(world, text)? {
+    resolve(world, engine, tool_choice(world, text)?, set)
+}
+
+/// The tool a choice names; `auto` by the matrix column of `set` at the world's
+/// horizons.
+fn resolve(world: &World, engine: &Engine, choice: ToolChoice, set: &ObjectSet) -> Result<ToolSel> {
+    Ok(match choice {
         ToolChoice::All => ToolSel::All,
         ToolChoice::Tool(k) => ToolSel::Tool(k),
         ToolChoice::Auto => {
@@ -144,7 +150,8 @@ pub fn lookup_table(
     horizon_equipped: u32,
     horizon_sum: bool,
 ) -> Result<(ToolSel, Vec<f32>)> {
-    if tool_choice(world, text)? == ToolChoice::Auto {
+    let choice = tool_choice(world, text)?;
+    if choice == ToolChoice::Auto {
         let e = &world.empowerment;
         let hz = AutoHorizons {
             select_unequipped: e.horizon_unequipped,
@@ -160,7 +167,7 @@ pub fn lookup_table(
             };
         }
     }
-    let tool = tool_sel(world, engine, text, set)?;
+    let tool = resolve(world, engine, choice, set)?;
     let values =
         engine.lookup_values(tool, set, horizon_unequipped, horizon_equipped, horizon_sum)?;
     Ok((tool, values))

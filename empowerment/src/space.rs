@@ -82,31 +82,31 @@ impl Packer {
         })
     }
 
+    /// Whether every field of `s` is in this world's range (the slots past its objects
+    /// zero), so that no garbage state aliases a real one's key.
     #[inline]
-    fn pack(&self, s: &State) -> Option<u64> {
+    fn in_range(&self, s: &State) -> bool {
         if s.x >= self.width || s.y >= self.height || s.mode > self.max_mode || s.reserved != 0 {
-            return None;
+            return false;
         }
         if (s.inventory as u32) >> self.tools != 0 {
-            return None;
+            return false;
         }
-        let mut k = (s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
-            + s.mode as u64;
-        k = k << self.tools | s.inventory as u64;
-        let mut bad = false;
-        for (&(b, max, boulder), &raw) in self.objects.iter().zip(&s.objects) {
-            // Boulders: a cell index below `cells` (= max), or destroyed, keyed as
-            // `cells`; the others: a condition 0..=2 (= max).
-            let v = if boulder && raw == fulcrum_world::BOULDER_DESTROYED {
-                max
-            } else {
-                bad |= if boulder { raw >= max } else { raw > max };
-                raw
-            };
-            k = k << b | v as u64;
-        }
+        // Boulders: a cell index below `cells` (= max), or destroyed; the others: a
+        // condition 0..=2 (= max).
+        let bad = self
+            .objects
+            .iter()
+            .zip(&s.objects)
+            .any(|(&(_, max, boulder), &raw)| {
+                if boulder {
+                    raw >= max && raw != fulcrum_world::BOULDER_DESTROYED
+                } else {
+                    raw > max
+                }
+            });
         if bad {
-            return None;
+            return false;
         }
         // Slots past the world's objects must be zero: test them four at a time.
         let w = s.words();
@@ -119,10 +119,31 @@ impl Packer {
                 u64::MAX << (16 * first)
             }
         };
-        if (0..4).any(|q| w[1 + q] & unused(q) != 0) {
-            return None;
+        !(0..4).any(|q| w[1 + q] & unused(q) != 0)
+    }
+
+    /// The packed key of `s`, `None` where a field is out of range.
+    #[inline]
+    fn pack(&self, s: &State) -> Option<u64> {
+        self.in_range(s).then(|| self.pack_trusted(s))
+    }
+
+    /// The key's first fields: cell and mode, then the inventory bits.
+    #[inline]
+    fn head(&self, s: &State) -> u64 {
+        ((s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1) + s.mode as u64)
+            << self.tools
+            | s.inventory as u64
+    }
+
+    /// An object's value in a key: a boulder destroyed is keyed as `cells`.
+    #[inline]
+    fn object_value(&self, boulder: bool, v: u16) -> u64 {
+        if boulder && v == fulcrum_world::BOULDER_DESTROYED {
+            self.cells as u64
+        } else {
+            v as u64
         }
-        Some(k)
     }
 
     /// How many keys [`Packer::dense_trusted`] can give: every field's range multiplied.
@@ -136,20 +157,12 @@ impl Packer {
 
     /// The state's key in mixed radix (cell and mode, inventory bits, then each object's
     /// value over its range): dense, `0..dense_len()`, for a direct table. Fields must be
-    /// in range ([`Packer::pack`] checks them).
+    /// in range ([`Packer::in_range`]).
     #[inline]
     fn dense_trusted(&self, s: &State) -> usize {
-        let mut k = ((s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
-            + s.mode as u64)
-            << self.tools
-            | s.inventory as u64;
+        let mut k = self.head(s);
         for (&(_, max, boulder), &v) in self.objects.iter().zip(&s.objects) {
-            let v = if boulder && v == fulcrum_world::BOULDER_DESTROYED {
-                self.cells
-            } else {
-                v
-            };
-            k = k * (max as u64 + 1) + v as u64;
+            k = k * (max as u64 + 1) + self.object_value(boulder, v);
         }
         k as usize
     }
@@ -157,16 +170,9 @@ impl Packer {
     /// [`Packer::pack`] without the range checks, for states the dynamics made.
     #[inline]
     fn pack_trusted(&self, s: &State) -> u64 {
-        let mut k = (s.y as u64 * self.width as u64 + s.x as u64) * (self.max_mode as u64 + 1)
-            + s.mode as u64;
-        k = k << self.tools | s.inventory as u64;
+        let mut k = self.head(s);
         for (&(b, _, boulder), &v) in self.objects.iter().zip(&s.objects) {
-            let v = if boulder && v == fulcrum_world::BOULDER_DESTROYED {
-                self.cells
-            } else {
-                v
-            };
-            k = k << b | v as u64;
+            k = k << b | self.object_value(boulder, v);
         }
         k
     }
@@ -204,7 +210,9 @@ impl Index {
     fn get(&self, s: &State) -> Option<u32> {
         match self {
             Index::Dense(p, t) => {
-                p.pack(s)?;
+                if !p.in_range(s) {
+                    return None;
+                }
                 let id = t[p.dense_trusted(s)];
                 (id != NO_ID).then_some(id)
             }
@@ -226,7 +234,7 @@ impl Index {
     fn get_or_insert(&mut self, s: &State, next: u32) -> (u32, bool) {
         match self {
             Index::Dense(p, t) => {
-                debug_assert!(p.pack(s).is_some());
+                debug_assert!(p.in_range(s));
                 let slot = &mut t[p.dense_trusted(s)];
                 if *slot == NO_ID {
                     *slot = next;

@@ -136,15 +136,19 @@ pub fn run(a: &ExperimentArgs) -> Result<()> {
     check_statistics(a)?;
     let arms = arms(a)?;
     if let Some(set) = &a.worlds {
-        if slurm {
-            let o = slurm_options(a)?;
-            fulcrum_run::experiment::check_options(&o)?;
-            let req = set_request(a, set, arms)?;
-            return report_launch(&fulcrum_run::experiment::launch_set(&req, &o)?);
+        // Slurm's options are checked before the set's files are written.
+        let slurm_opts = slurm.then(|| slurm_options(a)).transpose()?;
+        if let Some(o) = &slurm_opts {
+            fulcrum_run::experiment::check_options(o)?;
         }
         let req = set_request(a, set, arms)?;
-        print!("{}", fulcrum_run::experiment::run_set(&req)?);
-        return Ok(());
+        return match slurm_opts {
+            Some(o) => report_launch(&fulcrum_run::experiment::launch_set(&req, &o)?),
+            None => {
+                print!("{}", fulcrum_run::experiment::run_set(&req)?);
+                Ok(())
+            }
+        };
     }
     let world = a.world.clone().unwrap_or_default();
     let req = request(a, &world, &arms, a.out.clone())?;

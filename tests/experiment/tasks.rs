@@ -121,6 +121,16 @@ fn prints_as_local(args: &[&str], local: &Path, c: &Output) {
     );
 }
 
+/// The array script an experiment launched on Slurm wrote into `dir/slurm/`.
+pub fn array_script(dir: &Path) -> std::path::PathBuf {
+    std::fs::read_dir(dir.join("slurm"))
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .find(|p| p.extension().is_some_and(|e| e == "sbatch"))
+        .expect("the array script")
+}
+
 /// The experiment `args` launched on Slurm into `dir` with `--dry-run`.
 fn dry_run(args: &[&str], dir: &Path) -> Output {
     fulcrum()
@@ -391,12 +401,7 @@ fn a_set_of_worlds_on_slurm_collects_to_the_local_set() {
     for w in worlds {
         assert_eq!(dirs.matches(&format!("/{w}'")).count(), 2, "{dirs}");
     }
-    let path = std::fs::read_dir(dir.join("slurm"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .find(|p| p.extension().is_some_and(|e| e == "sbatch"))
-        .expect("the array script");
+    let path = array_script(&dir);
     // Where the script sends Slurm's output (a task whose output cannot open fails).
     assert!(dir.join("logs").is_dir());
     let run_task = |i: usize| {

@@ -14,7 +14,8 @@ use std::time::Duration;
 use fulcrum_learner::metrics::read_metrics;
 
 use crate::experiment::tasks::{
-    collect, collected_equals_local, script_pairs, set_collected_equals_local, EXPERIMENT, SET,
+    array_script, collect, collected_equals_local, script_pairs, set_collected_equals_local,
+    EXPERIMENT, SET,
 };
 use crate::util::{free_port, fulcrum, pids_with, wait_until, TempDir};
 
@@ -110,12 +111,7 @@ fn an_array_survives_a_killed_task_and_collects_to_the_local_result() {
     let local = TempDir::fresh("slurm-local");
 
     let job = node.submit(EXPERIMENT, &dir, 4);
-    let script_file = std::fs::read_dir(dir.join("slurm"))
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .find(|p| p.extension().is_some_and(|e| e == "sbatch"))
-        .expect("the array script");
+    let script_file = array_script(&dir);
     let pairs = script_pairs(&std::fs::read_to_string(&script_file).unwrap());
     assert_eq!(pairs.len(), 4);
     let i = pairs

@@ -211,8 +211,7 @@ pub fn run_set(req: &SetRequest) -> Result<String> {
         .iter()
         .map(|w| (w.name.clone(), w.fewest_steps))
         .collect();
-    let seeds = req.worlds.first().map_or(0, |w| w.request.seeds);
-    let markdown = pool(&req.description, &req.dir.path, &worlds, seeds, &summaries)?;
+    let markdown = pool(&req.description, &req.dir.path, &worlds, &summaries)?;
     let dir = &req.dir.path;
     if !failed.is_empty() {
         crate::fail!(
@@ -231,7 +230,6 @@ fn pool(
     description: &str,
     dir: &Path,
     worlds: &[(String, u32)],
-    seeds: u64,
     summaries: &[Summary],
 ) -> Result<String> {
     let first = summaries
@@ -258,7 +256,7 @@ fn pool(
     let summary = SetSummary {
         set: description.to_string(),
         worlds: worlds.to_vec(),
-        seeds,
+        seeds: first.arms.first().map_or(0, |a| a.seeds as u64),
         steps: first.steps,
         threshold: first.threshold,
         arms,
@@ -288,7 +286,6 @@ pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<C
     let _lock = lock_for_run(dir)?;
     let mut all = Collected::default();
     let mut summaries = Vec::with_capacity(spec.worlds.len());
-    let mut seeds = 0;
     for name in &spec.worlds {
         let (c, s) = super::slurm::collect_one(&dir.join(name), threshold, smooth)
             .with_context(|| format!("world {name}"))?;
@@ -305,7 +302,6 @@ pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<C
                 .into_iter()
                 .map(|(m, k)| (format!("{name}/{m}"), k)),
         );
-        seeds = s.arms.first().map_or(seeds, |a| a.seeds as u64);
         summaries.push(s);
     }
     let worlds: Vec<(String, u32)> = spec
@@ -314,7 +310,7 @@ pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<C
         .cloned()
         .zip(spec.fewest_steps.iter().copied())
         .collect();
-    all.markdown = pool(&spec.set, dir, &worlds, seeds, &summaries)?;
+    all.markdown = pool(&spec.set, dir, &worlds, &summaries)?;
     Ok(all)
 }
 
