@@ -37,12 +37,8 @@ impl EnvWorlds {
             return Ok(EnvWorlds::One(Arc::new(world.clone())));
         };
         let family = load_family(&cfg.world).map_err(|e| ActorError::World(e.to_string()))?;
-        let keep = match layouts {
-            Layouts::First(n) => n.min(1 << 16) as usize,
-            Layouts::All => KEEP_FRESH,
-        };
         Ok(EnvWorlds::Family {
-            pool: Box::new(LayoutPool::new(family, keep)),
+            pool: Box::new(LayoutPool::new(family, layouts.pool_size(KEEP_FRESH))),
             layouts,
         })
     }

@@ -142,8 +142,15 @@ pub fn connect(
 
 /// The world and run the learner's host sent, checked against what this host wants.
 fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
-    let world = fulcrum_world::parse_world(&hello.world_source, &hello.world_name)
-        .context("the run's world does not parse here")?;
+    // A family's run stands on its run world (layout 0 carrying the family's text), as
+    // on the learner's host.
+    let world = if fulcrum_world::family::is_family_text(&hello.world_source) {
+        fulcrum_world::family::parse_family(&hello.world_source, &hello.world_name)
+            .and_then(|f| f.run_world())
+    } else {
+        fulcrum_world::parse_world(&hello.world_source, &hello.world_name)
+    }
+    .context("the run's world does not parse here")?;
     let hash = format!("{:016x}", world.content_hash());
     if hash != hello.world_hash {
         fail!(
@@ -158,7 +165,7 @@ fn check_hello(hello: &Hello, want: Want, endpoint: &str) -> Result<World> {
         ));
     }
     if let Some(w) = want.world {
-        let mine = fulcrum_world::load_world(w)?;
+        let (mine, _) = fulcrum_world::family::load_world_or_family(w)?;
         if mine.content_hash() != world.content_hash() {
             return refuse(format!(
                 "the run at {endpoint} trains world '{}' (hash {}), not '{w}' (hash {:016x})",

@@ -37,7 +37,8 @@ use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_contracts::msg::kind;
 use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, HOST_STRIDE, MAX_ACTORS};
-use fulcrum_world::World;
+use fulcrum_world::family::Family;
+use fulcrum_world::{LayoutPool, World};
 
 /// The learner's zenoh access control for run `ns` (JSON): deny by default, on both
 /// flows, and allow only what the run needs. A rule allows a message when its key
@@ -82,6 +83,9 @@ pub type Hosts = Arc<Mutex<BTreeMap<String, (u32, String)>>>;
 pub struct Guard {
     layout: ChunkLayout,
     world: Arc<World>,
+    /// On a world family: its layouts (states are checked against each chunk row's own).
+    family: Option<Arc<Mutex<LayoutPool>>>,
+    layouts: Option<fulcrum_world::Layouts>,
     action_mask: bool,
     run: u64,
     world_hash: u64,
@@ -90,9 +94,18 @@ pub struct Guard {
 }
 
 impl Guard {
-    /// The checks for run namespace `ns` with `cfg` on `world`; `hosts` is the live
-    /// table the hello fills.
-    pub fn new(ns: &str, cfg: &RunConfig, world: &World, hosts: Hosts) -> Guard {
+    /// The checks for run namespace `ns` with `cfg` on `world` (on a family, its run
+    /// world and the family); `hosts` is the live table the hello fills.
+    pub fn new(
+        ns: &str,
+        cfg: &RunConfig,
+        world: &World,
+        family: Option<Family>,
+        hosts: Hosts,
+    ) -> Guard {
+        let family = family
+            .zip(cfg.layouts)
+            .map(|(f, l)| Arc::new(Mutex::new(LayoutPool::new(f, l.pool_size(256)))));
         let shape = cfg.shape(world);
         Guard {
             layout: ChunkLayout {
@@ -102,6 +115,8 @@ impl Guard {
                 flags: shape.flags,
             },
             world: Arc::new(world.clone()),
+            family,
+            layouts: cfg.layouts,
             action_mask: cfg.action_mask,
             run: traj::run_tag(ns),
             world_hash: world.content_hash(),
@@ -137,8 +152,21 @@ impl Guard {
             return Err("of another run or world".into());
         }
         let body = &bytes[ChunkHeader::WIRE_BYTES..];
-        check_chunk(&self.world, None, &self.layout, self.action_mask, &h, body)
-            .map_err(|e| e.to_string())?;
+        let mut pool = self
+            .family
+            .as_ref()
+            .map(|p| p.lock().unwrap_or_else(|p| p.into_inner()));
+        let layouts = self.layouts;
+        let family = pool.as_deref_mut().zip(layouts);
+        check_chunk(
+            &self.world,
+            family,
+            &self.layout,
+            self.action_mask,
+            &h,
+            body,
+        )
+        .map_err(|e| e.to_string())?;
         Ok(h)
     }
 

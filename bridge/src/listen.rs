@@ -38,7 +38,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
         dir: dir.to_path_buf(),
     };
     let cfg = RunConfig::load(&paths.config())?;
-    let world = fulcrum_world::load_world(&cfg.world)?;
+    let (world, family) = fulcrum_world::family::load_world_or_family(&cfg.world)?;
     let endpoint = locator(addr)?;
     let (secret, secret_file) = Secret::for_run(dir)?;
     let auth = Auth {
@@ -49,7 +49,7 @@ pub fn listen(addr: &str, dir: &Path, ns: &str, z: &ZenohOptions) -> Result<()> 
     let session = open_session(z, &endpoint, true, Some(&auth))?;
     let stats = Arc::new(BridgeStats::default());
     let hosts: Hosts = Arc::new(Mutex::new(read_hosts(&paths.host_names())));
-    let guard = Guard::new(ns, &cfg, &world, hosts.clone());
+    let guard = Guard::new(ns, &cfg, &world, family, hosts.clone());
     let hello_q = answer_hellos(&session, &paths, &cfg, &world, ns, hosts)?;
 
     let stop = Arc::new(AtomicBool::new(false));

@@ -306,16 +306,28 @@ pub mod wire {
         }
     }
 
-    /// A request: header, then `count` packed states.
+    /// A request: header, then `count` packed states, then (on a world family, where
+    /// some state's layout is not 0) each state's layout seed, 8 bytes little-endian.
+    /// Layouts left off read as 0, the meaning they have for one world and for a
+    /// family's layout 0, so the two forms never disagree.
     pub fn request(r: &EmpRequest) -> Vec<u8> {
         let n = (r.count as usize).min(MAX_BATCH);
-        let mut out = Vec::with_capacity(REQUEST_HEAD + n * STATE_BYTES);
+        let layouts = &r.layouts[..n];
+        let with_layouts = layouts.iter().any(|&l| l != 0);
+        let mut out = Vec::with_capacity(
+            REQUEST_HEAD + n * STATE_BYTES + if with_layouts { n * 8 } else { 0 },
+        );
         out.extend_from_slice(&r.world_hash.to_le_bytes());
         for v in [r.kind, r.count, r.tool as u32, r.horizon, r.objects, r.seq] {
             out.extend_from_slice(&v.to_le_bytes());
         }
         for s in &r.states[..n] {
             out.extend_from_slice(s);
+        }
+        if with_layouts {
+            for l in layouts {
+                out.extend_from_slice(&l.to_le_bytes());
+            }
         }
         out
     }
@@ -346,11 +358,12 @@ pub mod wire {
         if n > MAX_BATCH {
             return Err(format!("a request of {n} states (at most {MAX_BATCH})"));
         }
-        if r.0.len() != n * STATE_BYTES {
+        let (states, layouts) = (n * STATE_BYTES, n * 8);
+        if r.0.len() != states && r.0.len() != states + layouts {
             return Err(format!(
-                "a request of {n} states carries {} bytes of states, not {}",
+                "a request of {n} states carries {} bytes after its header, not {states} (states) or {} (states and layouts)",
                 r.0.len(),
-                n * STATE_BYTES
+                states + layouts
             ));
         }
         out.world_hash = world_hash;
@@ -360,8 +373,12 @@ pub mod wire {
         out.horizon = horizon;
         out.objects = objects;
         out.seq = seq;
-        for (slot, s) in out.states.iter_mut().zip(r.0.chunks_exact(STATE_BYTES)) {
+        let (body, mut tail) = (&r.0[..states], Reader(&r.0[states..]));
+        for (slot, s) in out.states.iter_mut().zip(body.chunks_exact(STATE_BYTES)) {
             slot.copy_from_slice(s);
+        }
+        for slot in out.layouts[..n].iter_mut() {
+            *slot = tail.u64().unwrap_or(0);
         }
         Ok(())
     }
@@ -489,6 +506,41 @@ mod tests {
             .unwrap_err()
             .contains("at most 1024"));
         assert!(wire::read_request(&b[..31], &mut back).is_err());
+    }
+
+    #[test]
+    fn a_family_request_carries_each_states_layout() {
+        let mut r = EmpRequest::boxed();
+        r.kind = kind::LOOKUP;
+        r.count = 2;
+        r.states[0] = [3; STATE_BYTES];
+        r.states[1] = [5; STATE_BYTES];
+        r.layouts[0] = 0;
+        r.layouts[1] = (1 << 40) + 7;
+        r.layouts[2] = 99; // beyond count: not sent
+        let b = wire::request(&r);
+        // Header, two states, two layouts (hand count: 32 + 2 x 38 + 2 x 8).
+        assert_eq!(b.len(), 124);
+        assert_eq!(&b[108..116], &[0; 8]);
+        assert_eq!(&b[116..124], &[7, 0, 0, 0, 0, 1, 0, 0]); // 2^40: byte 5
+                                                             // A receiver whose slots hold an earlier request's layouts gets these.
+        let mut back = EmpRequest::boxed();
+        back.layouts[0] = 12;
+        wire::read_request(&b, &mut back).unwrap();
+        assert_eq!(&back.layouts[..3], &[0, (1 << 40) + 7, 0]);
+        assert_eq!(back.states[1], [5; STATE_BYTES]);
+        // Every layout 0: left off, and read back as 0 over stale slots.
+        r.layouts[1] = 0;
+        let b = wire::request(&r);
+        assert_eq!(b.len(), 32 + 2 * 38);
+        back.layouts[1] = 5;
+        wire::read_request(&b, &mut back).unwrap();
+        assert_eq!(&back.layouts[..2], &[0, 0]);
+        // Part of the layouts: neither form, refused with a sentence.
+        r.layouts[1] = 1;
+        let b = wire::request(&r);
+        let why = wire::read_request(&b[..b.len() - 4], &mut back).unwrap_err();
+        assert!(why.contains("not 76 (states) or 92"), "{why}");
     }
 
     #[test]

@@ -248,11 +248,7 @@ impl<'a> Learner<'a> {
             Some(l) => {
                 let f = fulcrum_world::family::load_family(&cfg.world)
                     .map_err(|e| LearnerError::Run(e.to_string()))?;
-                let keep = match l {
-                    fulcrum_world::Layouts::First(n) => n.min(1 << 16) as usize,
-                    fulcrum_world::Layouts::All => 256,
-                };
-                Some(LayoutPool::new(f, keep))
+                Some(LayoutPool::new(f, l.pool_size(256)))
             }
         };
         let hosts = if cfg.remote {

@@ -243,11 +243,6 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
             "--empowerment-from does not fit a world family: estimates name the states of one world, and '{spec}' makes a new one each episode"
         ));
     }
-    if family.is_some() && request.remote {
-        return bad(format!(
-            "'{spec}' is a world family, and a run across hosts trains on one world only"
-        ));
-    }
     // A file path is stored absolute so that a resume from elsewhere finds it.
     let world_spec = if fulcrum_world::builtin::source(&spec).is_none() && Path::new(&spec).exists()
     {

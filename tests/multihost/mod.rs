@@ -19,6 +19,7 @@ use fulcrum_learner::metrics::read_metrics;
 
 use crate::util::{free_port, fulcrum, pids_with, signal, wait_until, TempDir};
 
+mod family;
 mod restarts;
 mod rogue;
 

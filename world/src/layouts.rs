@@ -40,6 +40,15 @@ impl Layouts {
         }
     }
 
+    /// How many parsed layouts a [`LayoutPool`] of a run on these layouts keeps: every
+    /// training layout (up to 2^16), or `fresh` recent ones on every layout.
+    pub fn pool_size(&self, fresh: usize) -> usize {
+        match *self {
+            Layouts::First(n) => n.min(1 << 16) as usize,
+            Layouts::All => fresh,
+        }
+    }
+
     /// The layout seed drawn by the random number `r` (see the module docs).
     pub fn draw(&self, r: u64) -> u64 {
         match *self {
