@@ -4,23 +4,28 @@
 
 use std::time::Duration;
 
-use super::{host_rows, secret_of, Proc, SMALL};
-use crate::util::{free_port, fulcrum, TempDir};
+use super::{host_rows, loopback, secret_of, Loopback, Proc};
+use crate::util::fulcrum;
 
 #[test]
 fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
-    let dir = TempDir::fresh("family");
-    let far = TempDir::fresh("family-far");
-    let addr = format!("127.0.0.1:{}", free_port());
-    let mut train = fulcrum();
-    train
-        .args(["train", "toolbox", "--layouts", "8", "--actors", "1"])
-        .args(["--steps", "204800", "--listen", &addr])
-        .args(SMALL)
-        .arg("--out")
-        .arg(&dir);
-    let mut learner = Proc::start(train);
-    learner.wait_line("may join", Duration::from_secs(60));
+    let Loopback {
+        dir,
+        far,
+        addr,
+        mut learner,
+    } = loopback(
+        "family",
+        &[
+            "toolbox",
+            "--layouts",
+            "8",
+            "--actors",
+            "1",
+            "--steps",
+            "204800",
+        ],
+    );
     let mut host = fulcrum();
     host.env("FULCRUM_SECRET", secret_of(&dir))
         .args(["actor-host", "--connect", &addr, "--name", "far"])

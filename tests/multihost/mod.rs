@@ -132,21 +132,46 @@ fn host_rows(dir: &Path) -> Vec<HostRow> {
 /// Small chunks: 4 worlds x 32 steps = 128 env steps a chunk.
 const SMALL: &[&str] = &["--envs-per-actor", "4", "--steps-per-chunk", "32"];
 
-#[test]
-fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
-    let dir = TempDir::fresh("loop");
-    let far = TempDir::fresh("loop-far");
+/// A learner on loopback that hosts may join, and a directory for an actor host.
+struct Loopback {
+    dir: TempDir,
+    far: TempDir,
+    addr: String,
+    learner: Proc,
+}
+
+/// `fulcrum train ARGS --listen 127.0.0.1:PORT` with [`SMALL`] chunks into a fresh run
+/// directory, waited for until it says hosts may join.
+fn loopback(tag: &str, args: &[&str]) -> Loopback {
+    let dir = TempDir::fresh(tag);
+    let far = TempDir::fresh(&format!("{tag}-far"));
     let addr = format!("127.0.0.1:{}", free_port());
     let mut train = fulcrum();
     train
-        .args([
-            "train", "exp2", "--actors", "1", "--steps", "300032", "--listen", &addr,
-        ])
+        .arg("train")
+        .args(args)
+        .args(["--listen", &addr])
         .args(SMALL)
         .arg("--out")
         .arg(&dir);
-    let mut learner = Proc::start(train);
+    let learner = Proc::start(train);
     learner.wait_line("may join", Duration::from_secs(60));
+    Loopback {
+        dir,
+        far,
+        addr,
+        learner,
+    }
+}
+
+#[test]
+fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
+    let Loopback {
+        dir,
+        far,
+        addr,
+        mut learner,
+    } = loopback("loop", &["exp2", "--actors", "1", "--steps", "300032"]);
     let secret = secret_of(&dir);
 
     // A host whose world is not the run's is refused before it runs anything.
@@ -277,20 +302,25 @@ fn cpu_seconds(pid: u32) -> f64 {
 
 #[test]
 fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
-    let dir = TempDir::fresh("stop");
-    let far = TempDir::fresh("stop-far");
-    let addr = format!("127.0.0.1:{}", free_port());
     // Asynchronous actors: they would run on without waiting for weights, so only
     // backpressure can hold the far one back.
-    let mut train = fulcrum();
-    train
-        .args(["train", "exp2", "--actors", "1", "--steps", "99999872"])
-        .args(["--listen", &addr, "--max-policy-lag", "1000000"])
-        .args(SMALL)
-        .arg("--out")
-        .arg(&dir);
-    let mut learner = Proc::start(train);
-    learner.wait_line("may join", Duration::from_secs(60));
+    let Loopback {
+        dir,
+        far,
+        addr,
+        mut learner,
+    } = loopback(
+        "stop",
+        &[
+            "exp2",
+            "--actors",
+            "1",
+            "--steps",
+            "99999872",
+            "--max-policy-lag",
+            "1000000",
+        ],
+    );
     let mut host = fulcrum();
     host.env("FULCRUM_SECRET", secret_of(&dir))
         .args([

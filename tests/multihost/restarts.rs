@@ -3,24 +3,28 @@
 
 use std::time::Duration;
 
-use super::{host_rows, secret_of, Proc, SMALL};
-use crate::util::free_port;
-use crate::util::{fulcrum, pids_with, signal, wait_until, TempDir};
+use super::{host_rows, loopback, secret_of, Loopback, Proc};
+use crate::util::{fulcrum, pids_with, signal, wait_until};
 
 #[test]
 fn an_actor_host_restarts_after_back_offs_and_stops_over_its_budget() {
-    let dir = TempDir::fresh("host-budget");
-    let far = TempDir::fresh("host-budget-far");
-    let addr = format!("127.0.0.1:{}", free_port());
-    let mut train = fulcrum();
-    train
-        .args(["train", "room", "--actors", "1", "--steps", "99999872"])
-        .args(["--listen", &addr, "--stall-timeout", "2"])
-        .args(SMALL)
-        .arg("--out")
-        .arg(&dir);
-    let mut learner = Proc::start(train);
-    learner.wait_line("may join", Duration::from_secs(60));
+    let Loopback {
+        dir,
+        far,
+        addr,
+        mut learner,
+    } = loopback(
+        "host-budget",
+        &[
+            "room",
+            "--actors",
+            "1",
+            "--steps",
+            "99999872",
+            "--stall-timeout",
+            "2",
+        ],
+    );
     let mut host = fulcrum();
     host.env("FULCRUM_SECRET", secret_of(&dir))
         .args(["actor-host", "--connect", &addr, "--name", "far"])

@@ -14,7 +14,7 @@ use fulcrum_contracts::config::RunConfig;
 use fulcrum_contracts::msg::{kind, wire, EmpRequest};
 use fulcrum_contracts::traj::{self, ChunkHeader, ChunkLayout, WeightsHeader};
 
-use super::{host_rows, Proc, SMALL};
+use super::{host_rows, loopback, Loopback, Proc};
 use crate::util::free_port;
 use crate::util::{fulcrum, pids_with, wait_until, TempDir};
 
@@ -132,19 +132,12 @@ fn refused(text: &str) -> Option<(u64, u64)> {
 
 #[test]
 fn a_rogue_peer_is_refused_at_each_step_and_the_run_goes_on() {
-    let dir = TempDir::fresh("rogue");
-    let far = TempDir::fresh("rogue-far");
-    let addr = format!("127.0.0.1:{}", free_port());
-    let mut train = fulcrum();
-    train
-        .args([
-            "train", "exp2", "--actors", "1", "--steps", "600064", "--listen", &addr,
-        ])
-        .args(SMALL)
-        .arg("--out")
-        .arg(&dir);
-    let mut learner = Proc::start(train);
-    learner.wait_line("may join", Duration::from_secs(60));
+    let Loopback {
+        dir,
+        far,
+        addr,
+        mut learner,
+    } = loopback("rogue", &["exp2", "--actors", "1", "--steps", "600064"]);
 
     // The run's secret: owner-only, in the run directory, said once with the join line.
     let file = dir.join("secret");
