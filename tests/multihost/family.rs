@@ -4,34 +4,18 @@
 
 use std::time::Duration;
 
-use super::{host_rows, loopback, secret_of, Loopback, Proc};
-use crate::util::fulcrum;
+use super::{host_rows, loopback, Loopback};
 
 #[test]
 fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
+    let lb = loopback("family", "toolbox --layouts 8 --actors 1 --steps 204800");
+    let mut host = lb.host("far", "--actors 1 --world toolbox");
     let Loopback {
         dir,
         far,
-        addr,
         mut learner,
-    } = loopback(
-        "family",
-        &[
-            "toolbox",
-            "--layouts",
-            "8",
-            "--actors",
-            "1",
-            "--steps",
-            "204800",
-        ],
-    );
-    let mut host = fulcrum();
-    host.env("FULCRUM_SECRET", secret_of(&dir))
-        .args(["actor-host", "--connect", &addr, "--name", "far"])
-        .args(["--actors", "1", "--world", "toolbox", "--dir"])
-        .arg(&far);
-    let mut host = Proc::start(host);
+        ..
+    } = lb;
     let status = learner.finish(Duration::from_secs(240));
     assert!(status.success(), "{}", learner.text());
     let hs = host.finish(Duration::from_secs(30));

@@ -140,16 +140,16 @@ struct Loopback {
     learner: Proc,
 }
 
-/// `fulcrum train ARGS --listen 127.0.0.1:PORT` with [`SMALL`] chunks into a fresh run
-/// directory, waited for until it says hosts may join.
-fn loopback(tag: &str, args: &[&str]) -> Loopback {
+/// `fulcrum train ARGS --listen 127.0.0.1:PORT` (ARGS split at spaces) with [`SMALL`]
+/// chunks into a fresh run directory, waited for until it says hosts may join.
+fn loopback(tag: &str, args: &str) -> Loopback {
     let dir = TempDir::fresh(tag);
     let far = TempDir::fresh(&format!("{tag}-far"));
     let addr = format!("127.0.0.1:{}", free_port());
     let mut train = fulcrum();
     train
         .arg("train")
-        .args(args)
+        .args(args.split_whitespace())
         .args(["--listen", &addr])
         .args(SMALL)
         .arg("--out")
@@ -164,6 +164,20 @@ fn loopback(tag: &str, args: &[&str]) -> Loopback {
     }
 }
 
+impl Loopback {
+    /// `fulcrum actor-host --connect ADDR --name NAME ARGS --dir FAR` (ARGS split at
+    /// spaces) with the run's secret in the environment, started.
+    fn host(&self, name: &str, args: &str) -> Proc {
+        let mut host = fulcrum();
+        host.env("FULCRUM_SECRET", secret_of(&self.dir))
+            .args(["actor-host", "--connect", &self.addr, "--name", name])
+            .args(args.split_whitespace())
+            .arg("--dir")
+            .arg(&self.far);
+        Proc::start(host)
+    }
+}
+
 #[test]
 fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
     let Loopback {
@@ -171,7 +185,7 @@ fn an_actor_host_on_loopback_trains_with_the_learner_and_leaves_when_it_ends() {
         far,
         addr,
         mut learner,
-    } = loopback("loop", &["exp2", "--actors", "1", "--steps", "300032"]);
+    } = loopback("loop", "exp2 --actors 1 --steps 300032");
     let secret = secret_of(&dir);
 
     // A host whose world is not the run's is refused before it runs anything.
@@ -304,37 +318,17 @@ fn cpu_seconds(pid: u32) -> f64 {
 fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
     // Asynchronous actors: they would run on without waiting for weights, so only
     // backpressure can hold the far one back.
+    let lb = loopback(
+        "stop",
+        "exp2 --actors 1 --steps 99999872 --max-policy-lag 1000000",
+    );
+    let mut host = lb.host("far", "--actors 1");
     let Loopback {
         dir,
         far,
-        addr,
         mut learner,
-    } = loopback(
-        "stop",
-        &[
-            "exp2",
-            "--actors",
-            "1",
-            "--steps",
-            "99999872",
-            "--max-policy-lag",
-            "1000000",
-        ],
-    );
-    let mut host = fulcrum();
-    host.env("FULCRUM_SECRET", secret_of(&dir))
-        .args([
-            "actor-host",
-            "--connect",
-            &addr,
-            "--name",
-            "far",
-            "--actors",
-            "1",
-        ])
-        .arg("--dir")
-        .arg(&far);
-    let mut host = Proc::start(host);
+        ..
+    } = lb;
     let far_chunks = |dir: &Path| {
         host_rows(dir)
             .iter()

@@ -3,42 +3,22 @@
 
 use std::time::Duration;
 
-use super::{host_rows, loopback, secret_of, Loopback, Proc};
-use crate::util::{fulcrum, pids_with, signal, wait_until};
+use super::{host_rows, loopback, Loopback};
+use crate::util::{pids_with, signal, wait_until};
 
 #[test]
 fn an_actor_host_restarts_after_back_offs_and_stops_over_its_budget() {
+    let lb = loopback(
+        "host-budget",
+        "room --actors 1 --steps 99999872 --stall-timeout 2",
+    );
+    let mut host = lb.host("far", "--actors 1 --max-restarts 2 --restart-window 60");
     let Loopback {
         dir,
         far,
-        addr,
         mut learner,
-    } = loopback(
-        "host-budget",
-        &[
-            "room",
-            "--actors",
-            "1",
-            "--steps",
-            "99999872",
-            "--stall-timeout",
-            "2",
-        ],
-    );
-    let mut host = fulcrum();
-    host.env("FULCRUM_SECRET", secret_of(&dir))
-        .args(["actor-host", "--connect", &addr, "--name", "far"])
-        .args([
-            "--actors",
-            "1",
-            "--max-restarts",
-            "2",
-            "--restart-window",
-            "60",
-        ])
-        .arg("--dir")
-        .arg(&far);
-    let mut host = Proc::start(host);
+        ..
+    } = lb;
     let far_chunks = || {
         host_rows(&dir)
             .iter()

@@ -137,7 +137,7 @@ fn a_rogue_peer_is_refused_at_each_step_and_the_run_goes_on() {
         far,
         addr,
         mut learner,
-    } = loopback("rogue", &["exp2", "--actors", "1", "--steps", "600064"]);
+    } = loopback("rogue", "exp2 --actors 1 --steps 600064");
 
     // The run's secret: owner-only, in the run directory, said once with the join line.
     let file = dir.join("secret");
