@@ -2,7 +2,8 @@
 # RESULTS.md, "Layouts never seen": train on 16 and on 256 layouts of `toolbox` and on a
 # fresh layout every episode (`all`) (three arms, 10 seeds, 2,000,896 env steps each),
 # then play every run's final policy on 500 held-out layouts and on its training layouts
-# (all 16 or 256; for `all`, the first 256 seeds of its training range), and gather the
+# (all 16 or 256; for `all`, the first 256 seeds of its training range), greedy and
+# sampled (the actions drawn from the policy, as in training), and gather the
 # rows into docs/results/layouts-evals.csv and the experiments' summaries into
 # docs/results/layouts-<N>-summary.json (what scripts/layouts_tables.py reads).
 #
@@ -25,9 +26,11 @@ for n in $LAYOUTS; do
   case $n in all) train=256 ;; *) train=$(( n < 256 ? n : 256 )) ;; esac
   for run in "$OUT/$n"/runs/*/seed-*; do
     for which in test:500 "train:$train"; do
-      if ! grep -q ",$which,greedy," "$run/eval.csv" 2>/dev/null; then
-        "$FULCRUM" eval "$run" --layouts "$which" > /dev/null
-      fi
+      for mode in greedy sample; do
+        if ! grep -q ",$which,$mode," "$run/eval.csv" 2>/dev/null; then
+          "$FULCRUM" eval "$run" --layouts "$which" "--$mode" > /dev/null
+        fi
+      done
     done
   done
   cp "$OUT/$n/summary.json" "docs/results/layouts-$n-summary.json"
@@ -44,7 +47,7 @@ done
     for run in "$OUT/$n"/runs/*/seed-*; do
       arm=$(basename "$(dirname "$run")")
       seed=${run##*seed-}
-      grep ",greedy," "$run/eval.csv" | sed "s/^/$n,$arm,$seed,/"
+      grep -E ",(greedy|sample)," "$run/eval.csv" | sed "s/^/$n,$arm,$seed,/"
     done
   done
 } > "$CSV.tmp"
