@@ -6,7 +6,7 @@
 use fulcrum_world::{ObjectSet, ToolChoice, World};
 
 use crate::auto::AutoHorizons;
-use crate::engine::{Engine, Method, ToolSel};
+use crate::engine::{Engine, Matrix, Method, ToolSel};
 use crate::error::EngineError;
 use crate::limits::Limits;
 
@@ -109,15 +109,31 @@ pub fn tool_sel(
     text: Option<&str>,
     set: &ObjectSet,
 ) -> Result<ToolSel> {
+    Ok(tool_sel_with_column(world, engine, text, set)?.0)
+}
+
+/// [`tool_sel`], and with `auto` the matrix (one column, `set`'s, at the world's
+/// horizons) the selection came from, for saying why.
+pub fn tool_sel_with_column(
+    world: &World,
+    engine: &Engine,
+    text: Option<&str>,
+    set: &ObjectSet,
+) -> Result<(ToolSel, Option<Matrix>)> {
     resolve(world, engine, tool_choice(world, text)?, set)
 }
 
-/// The tool a choice names; `auto` by the matrix column of `set` at the world's
-/// horizons.
-fn resolve(world: &World, engine: &Engine, choice: ToolChoice, set: &ObjectSet) -> Result<ToolSel> {
+/// The tool a choice names, and with `auto` the matrix it came from (see
+/// [`tool_sel_with_column`]).
+fn resolve(
+    world: &World,
+    engine: &Engine,
+    choice: ToolChoice,
+    set: &ObjectSet,
+) -> Result<(ToolSel, Option<Matrix>)> {
     Ok(match choice {
-        ToolChoice::All => ToolSel::All,
-        ToolChoice::Tool(k) => ToolSel::Tool(k),
+        ToolChoice::All => (ToolSel::All, None),
+        ToolChoice::Tool(k) => (ToolSel::Tool(k), None),
         ToolChoice::Auto => {
             let e = &world.empowerment;
             let m = engine.matrix(
@@ -129,7 +145,7 @@ fn resolve(world: &World, engine: &Engine, choice: ToolChoice, set: &ObjectSet) 
             match m.selection[0] {
                 Some(k) => {
                     tracing::info!(tool = %m.tools[k], "tool selection");
-                    ToolSel::Tool(k)
+                    (ToolSel::Tool(k), Some(m))
                 }
                 None => return no_tool(world, set),
             }
@@ -167,7 +183,7 @@ pub fn lookup_table(
             };
         }
     }
-    let tool = resolve(world, engine, choice, set)?;
+    let (tool, _) = resolve(world, engine, choice, set)?;
     let values =
         engine.lookup_values(tool, set, horizon_unequipped, horizon_equipped, horizon_sum)?;
     Ok((tool, values))

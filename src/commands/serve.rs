@@ -7,12 +7,12 @@ use anyhow::Result;
 use fulcrum_contracts::lines::ChildLine;
 use fulcrum_contracts::msg;
 use fulcrum_empowerment::service::{serve, ServeConfig, Tables};
-use fulcrum_empowerment::{set_name, Method, ToolSel};
+use fulcrum_empowerment::{set_name, ToolSel};
 
 use crate::cli::ServeArgs;
 use crate::commands::bad;
 use fulcrum_contracts::config::EmpowermentModel;
-use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
+use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel_with_column};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::child::load_run;
 use fulcrum_run::BadRequest;
@@ -94,7 +94,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     let w = &*w;
     let set = objects_or_default(w, a.objects.as_deref())?;
     let e = engine(w)?;
-    let tool = tool_sel(w, &e, a.tool.as_deref(), &set)?;
+    let (tool, matrix) = tool_sel_with_column(w, &e, a.tool.as_deref(), &set)?;
     let hu = a
         .horizon_unequipped
         .unwrap_or(w.empowerment.horizon_unequipped);
@@ -107,11 +107,8 @@ pub fn run(args: &ServeArgs) -> Result<()> {
             ));
         }
     }
-    let auto = matches!(a.tool.as_deref(), Some("auto"))
-        || (a.tool.is_none() && w.empowerment.tool == fulcrum_world::ToolChoice::Auto);
-    if auto {
-        // Log the column the selection came from.
-        let m = e.matrix(std::slice::from_ref(&set), hu, he, Method::Dp)?;
+    if let Some(m) = matrix {
+        // The column the selection came from (at the world's horizons).
         let col: Vec<String> = m
             .tools
             .iter()

@@ -201,6 +201,34 @@ fn a_client_started_first_waits_for_the_service() {
     assert!(matches!(err, ClientError::NoService { .. }), "{err:?}");
 }
 
+// `serve --tool auto` says which column the selection came from: the world's own
+// horizons (exp1-tree's 8 / 3, worlds/EXPECTED.md: the axe's 96/2052 over the tree, every
+// other tool 0), even where the served table's horizons are others (here 2 / 1, at which
+// the axe's entry is not 96/2052).
+#[test]
+fn serve_says_the_selection_column_at_the_worlds_horizons() {
+    let ns = namespace("column");
+    let mut child = fulcrum()
+        .args(["serve", "exp1-tree", "--namespace", &ns, "--tool", "auto"])
+        .args(["--horizon-unequipped", "2", "--horizon-equipped", "1"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("fulcrum serve starts");
+    let stderr = child.stderr.take().unwrap();
+    let line = BufReader::new(stderr)
+        .lines()
+        .map_while(Result::ok)
+        .find(|l| l.starts_with("tool selection for"));
+    let _ = child.kill();
+    let _ = child.wait();
+    let want = format!(
+        "tool selection for tree: axe (axe {:.6}, pickaxe 0.000000, tin_opener 0.000000, key 0.000000)",
+        96.0 / 2052.0
+    );
+    assert_eq!(line.as_deref(), Some(want.as_str()));
+}
+
 #[test]
 fn a_wrong_world_client_is_refused() {
     let ns = namespace("wrong");
