@@ -86,29 +86,39 @@ impl Packer {
     /// zero), so that no garbage state aliases a real one's key.
     #[inline]
     fn in_range(&self, s: &State) -> bool {
-        if s.x >= self.width || s.y >= self.height || s.mode > self.max_mode || s.reserved != 0 {
-            return false;
+        self.head_in_range(s)
+            && !self
+                .objects
+                .iter()
+                .zip(&s.objects)
+                .any(|(&(_, max, boulder), &raw)| Packer::object_out_of_range(max, boulder, raw))
+            && self.unused_slots_zero(s)
+    }
+
+    /// Whether the cell, mode, reserved byte and inventory of `s` are in range.
+    #[inline]
+    fn head_in_range(&self, s: &State) -> bool {
+        s.x < self.width
+            && s.y < self.height
+            && s.mode <= self.max_mode
+            && s.reserved == 0
+            && (s.inventory as u32) >> self.tools == 0
+    }
+
+    /// Whether an object's raw value is out of its range. Boulders: a cell index below
+    /// `cells` (= max), or destroyed; the others: a condition 0..=2 (= max).
+    #[inline]
+    fn object_out_of_range(max: u16, boulder: bool, raw: u16) -> bool {
+        if boulder {
+            raw >= max && raw != fulcrum_world::BOULDER_DESTROYED
+        } else {
+            raw > max
         }
-        if (s.inventory as u32) >> self.tools != 0 {
-            return false;
-        }
-        // Boulders: a cell index below `cells` (= max), or destroyed; the others: a
-        // condition 0..=2 (= max).
-        let bad = self
-            .objects
-            .iter()
-            .zip(&s.objects)
-            .any(|(&(_, max, boulder), &raw)| {
-                if boulder {
-                    raw >= max && raw != fulcrum_world::BOULDER_DESTROYED
-                } else {
-                    raw > max
-                }
-            });
-        if bad {
-            return false;
-        }
-        // Slots past the world's objects must be zero: test them four at a time.
+    }
+
+    /// Whether the object slots past the world's objects are zero (four at a time).
+    #[inline]
+    fn unused_slots_zero(&self, s: &State) -> bool {
         let w = s.words();
         let n = self.objects.len();
         let unused = |q: usize| -> u64 {
@@ -122,10 +132,20 @@ impl Packer {
         !(0..4).any(|q| w[1 + q] & unused(q) != 0)
     }
 
-    /// The packed key of `s`, `None` where a field is out of range.
+    /// The packed key of `s`, `None` where a field is out of range: the objects' range
+    /// checks and their key bits in one pass (a look-up's hot path).
     #[inline]
     fn pack(&self, s: &State) -> Option<u64> {
-        self.in_range(s).then(|| self.pack_trusted(s))
+        if !self.head_in_range(s) {
+            return None;
+        }
+        let mut k = self.head(s);
+        let mut bad = false;
+        for (&(b, max, boulder), &raw) in self.objects.iter().zip(&s.objects) {
+            bad |= Packer::object_out_of_range(max, boulder, raw);
+            k = k << b | self.object_value(boulder, raw);
+        }
+        (!bad && self.unused_slots_zero(s)).then_some(k)
     }
 
     /// The key's first fields: cell and mode, then the inventory bits.
@@ -579,22 +599,48 @@ mod tests {
             }
             let b = w.boulder_indices().next().unwrap();
             let cells = (w.width * w.height) as u16;
+            let mut bads = Vec::new();
+            // A boulder slot holding the value that keys "destroyed" must not alias it,
+            // here or in a state of the space whose boulder is destroyed (where there is
+            // one).
             let mut bad = w.initial;
-            // A boulder slot holding the value that keys "destroyed" must not alias it.
             bad.objects[b] = cells;
-            assert_eq!(sp.id(&bad), None);
+            bads.push(bad);
+            let destroyed = sp
+                .states()
+                .iter()
+                .find(|s| s.objects[b] == fulcrum_world::BOULDER_DESTROYED);
+            if let Some(d) = destroyed {
+                let mut bad = *d;
+                bad.objects[b] = cells;
+                bads.push(bad);
+            }
+            // Another object's condition past 2.
+            let other = (0..w.objects.len()).find(|&i| i != b).unwrap();
+            let mut bad = w.initial;
+            bad.objects[other] = 3;
+            bads.push(bad);
             let mut bad = w.initial;
             bad.objects[15] = 1; // a slot past the world's objects
-            assert_eq!(sp.id(&bad), None);
+            bads.push(bad);
             let mut bad = w.initial;
             bad.x = w.width as u8;
-            assert_eq!(sp.id(&bad), None);
+            bads.push(bad);
             let mut bad = w.initial;
             bad.inventory = 1 << w.tools.len();
-            assert_eq!(sp.id(&bad), None);
+            bads.push(bad);
             let mut bad = w.initial;
             bad.mode = 2 + w.tools.len() as u8;
-            assert_eq!(sp.id(&bad), None);
+            bads.push(bad);
+            let packer = match &sp.index {
+                Index::Dense(p, _) | Index::Packed(p, _) => p,
+                Index::Full(_) => unreachable!(),
+            };
+            for bad in &bads {
+                assert_eq!(sp.id(bad), None, "{name}: {bad:?}");
+                assert_eq!(packer.pack(bad), None, "{name}: {bad:?}");
+                assert!(!packer.in_range(bad), "{name}: {bad:?}");
+            }
         }
     }
 }
