@@ -4,20 +4,14 @@
 
 use std::time::Duration;
 
-use super::{host_rows, loopback, Loopback};
+use super::{host_rows, loopback};
 
 #[test]
 fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
-    let lb = loopback("family", "toolbox --layouts 8 --actors 1 --steps 204800");
+    let mut lb = loopback("family", "toolbox --layouts 8 --actors 1 --steps 204800");
     let mut host = lb.host("far", "--actors 1 --world toolbox");
-    let Loopback {
-        dir,
-        far,
-        mut learner,
-        ..
-    } = lb;
-    let status = learner.finish(Duration::from_secs(240));
-    assert!(status.success(), "{}", learner.text());
+    let status = lb.learner.finish(Duration::from_secs(240));
+    assert!(status.success(), "{}", lb.learner.text());
     let hs = host.finish(Duration::from_secs(30));
     assert!(hs.success(), "{}", host.text());
     assert!(host.text().contains("the run is over"), "{}", host.text());
@@ -25,7 +19,7 @@ fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
     // The far actor took part: 8 layouts over 4 worlds, so its states are of layouts
     // other than 0, which the learner's side would refuse checked against layout 0 and
     // the service would not find were the layouts lost on the way.
-    let remote = host_rows(&dir)
+    let remote = host_rows(&lb.dir)
         .into_iter()
         .filter(|r| r.name == "far")
         .count();
@@ -33,7 +27,7 @@ fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
         remote >= 20,
         "the remote actor took part in {remote} updates"
     );
-    let learner_text = learner.text();
+    let learner_text = lb.learner.text();
     let stopped = learner_text
         .lines()
         .find(|l| l.starts_with("fulcrum bridge: stopped:"))
@@ -55,7 +49,7 @@ fn an_actor_host_trains_on_a_family_and_its_lookups_name_their_layouts() {
         host.text()
     );
     // The host keeps the family as the run's world file.
-    let world = std::fs::read_to_string(far.join("world.toml")).unwrap();
+    let world = std::fs::read_to_string(lb.far.join("world.toml")).unwrap();
     assert!(world.contains("[family]"), "{world}");
-    let _ = std::fs::remove_dir_all(&far);
+    let _ = std::fs::remove_dir_all(&lb.far);
 }

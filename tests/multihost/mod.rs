@@ -318,17 +318,11 @@ fn cpu_seconds(pid: u32) -> f64 {
 fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
     // Asynchronous actors: they would run on without waiting for weights, so only
     // backpressure can hold the far one back.
-    let lb = loopback(
+    let mut lb = loopback(
         "stop",
         "exp2 --actors 1 --steps 99999872 --max-policy-lag 1000000",
     );
     let mut host = lb.host("far", "--actors 1");
-    let Loopback {
-        dir,
-        far,
-        mut learner,
-        ..
-    } = lb;
     let far_chunks = |dir: &Path| {
         host_rows(dir)
             .iter()
@@ -337,10 +331,10 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
             .sum::<u64>()
     };
     wait_until(Duration::from_secs(60), "the far host joining", || {
-        far_chunks(&dir) > 5
+        far_chunks(&lb.dir) > 5
     });
-    let learner_pid = pids_with(&["__learner", &dir.display().to_string()])[0];
-    let actor_pid = pids_with(&["__actor", &far.display().to_string()])[0];
+    let learner_pid = pids_with(&["__learner", &lb.dir.display().to_string()])[0];
+    let actor_pid = pids_with(&["__actor", &lb.far.display().to_string()])[0];
 
     signal(learner_pid, "-STOP");
     std::thread::sleep(Duration::from_secs(1)); // the queues on the way fill up
@@ -354,24 +348,24 @@ fn a_stopped_learner_holds_remote_actors_back_without_losing_a_chunk() {
         used < 0.5,
         "the far actor used {used} s of CPU in 3 s while the learner was stopped"
     );
-    let before = far_chunks(&dir);
+    let before = far_chunks(&lb.dir);
     wait_until(Duration::from_secs(30), "the far host going on", || {
-        far_chunks(&dir) > before + 20
+        far_chunks(&lb.dir) > before + 20
     });
-    signal(learner.child.id(), "-INT");
-    assert_eq!(learner.finish(Duration::from_secs(60)).code(), Some(130));
+    signal(lb.learner.child.id(), "-INT");
+    assert_eq!(lb.learner.finish(Duration::from_secs(60)).code(), Some(130));
     assert!(
         host.finish(Duration::from_secs(30)).success(),
         "{}",
         host.text()
     );
-    let last = read_metrics(&dir.join("metrics.csv"))
+    let last = read_metrics(&lb.dir.join("metrics.csv"))
         .unwrap()
         .pop()
         .unwrap();
     // Nothing was dropped to make room, and every chunk arrived.
     assert_eq!((last.lost_chunks, last.dropped_chunks), (0, 0));
-    let _ = std::fs::remove_dir_all(&far);
+    let _ = std::fs::remove_dir_all(&lb.far);
 }
 
 /// The emulated second host of `scripts/two-hosts.sh`, removed on drop.

@@ -3,24 +3,18 @@
 
 use std::time::Duration;
 
-use super::{host_rows, loopback, Loopback};
+use super::{host_rows, loopback};
 use crate::util::{pids_with, signal, wait_until};
 
 #[test]
 fn an_actor_host_restarts_after_back_offs_and_stops_over_its_budget() {
-    let lb = loopback(
+    let mut lb = loopback(
         "host-budget",
         "room --actors 1 --steps 99999872 --stall-timeout 2",
     );
     let mut host = lb.host("far", "--actors 1 --max-restarts 2 --restart-window 60");
-    let Loopback {
-        dir,
-        far,
-        mut learner,
-        ..
-    } = lb;
     let far_chunks = || {
-        host_rows(&dir)
+        host_rows(&lb.dir)
             .iter()
             .filter(|r| r.host == 1)
             .map(|r| r.chunks)
@@ -29,7 +23,7 @@ fn an_actor_host_restarts_after_back_offs_and_stops_over_its_budget() {
     wait_until(Duration::from_secs(60), "the far host joining", || {
         far_chunks() > 2
     });
-    let far_s = far.display().to_string();
+    let far_s = lb.far.display().to_string();
     // Three quick kills of the far actor: two restarts allowed in 60 s, the third
     // stop is over the budget.
     for kill in 1..=3 {
@@ -62,11 +56,11 @@ fn an_actor_host_restarts_after_back_offs_and_stops_over_its_budget() {
     wait_until(Duration::from_secs(10), "the host's processes gone", || {
         pids_with(&[&far_s]).is_empty()
     });
-    signal(learner.child.id(), "-INT");
+    signal(lb.learner.child.id(), "-INT");
     assert_eq!(
-        learner.finish(Duration::from_secs(60)).code(),
+        lb.learner.finish(Duration::from_secs(60)).code(),
         Some(130),
         "{}",
-        learner.text()
+        lb.learner.text()
     );
 }
