@@ -85,6 +85,10 @@ pub struct RunConfig {
     /// Episodes of each periodic evaluation.
     #[serde(default = "default_eval_episodes")]
     pub eval_episodes: usize,
+    /// Whether the periodic evaluation samples its actions from the policy (seeded by
+    /// `seed`) instead of playing greedy (a config without the field: greedy).
+    #[serde(default)]
+    pub eval_sample: bool,
     /// Whether actors on other hosts may join (`train --listen`, feature `multihost`).
     /// Then an update takes one chunk from every local actor and every live remote one,
     /// and the run ends after `total_steps` env steps, whatever the batches were.
@@ -557,6 +561,7 @@ mod tests {
             checkpoint_every: 10,
             eval_every: 0,
             eval_episodes: 10,
+            eval_sample: false,
             action_mask: true,
             view: View::Full,
             intrinsic_value_head: false,

@@ -1,11 +1,13 @@
 //! `eval.csv`: evaluations of a run's policy, one row per evaluation, appended by
 //! `fulcrum eval` and, every `eval_every` updates, by the learner of
 //! `train --eval-every` (mode `train-greedy`, [`PERIODIC`](crate::evalcsv::PERIODIC):
-//! greedy actions, during training).
+//! greedy actions, during training; `train-sample`,
+//! [`PERIODIC_SAMPLE`](crate::evalcsv::PERIODIC_SAMPLE), with `--eval-sample`).
 //!
 //! Columns ([`EVAL_COLUMNS`](crate::evalcsv::EVAL_COLUMNS)): the policy's update and
 //! env steps, the world played (a family's name on a family), the layouts played
-//! (`test:K`, `test:A..B`, `train:K`; empty for one world), the mode (`greedy`, `sample` or `train-greedy`), the
+//! (`test:K`, `test:A..B`, `train:K`; empty for one world), the mode (`greedy`, `sample`,
+//! `train-greedy` or `train-sample`), the
 //! sampling seed, the episodes, then success rate, mean return, mean length, tool-use
 //! rate and tool-choice rate (the first tool used fits the task), each followed by its
 //! 95% interval's ends. A resumed run drops the periodic rows after its checkpoint (it
@@ -22,6 +24,14 @@ pub const EVAL_COLUMNS: &str = "update,env_steps,world,layouts,mode,seed,episode
 /// The mode of the rows `train --eval-every` writes: greedy actions, during training.
 pub const PERIODIC: &str = "train-greedy";
 
+/// The mode of a periodic evaluation with sampled actions (`train --eval-sample`).
+pub const PERIODIC_SAMPLE: &str = "train-sample";
+
+/// Whether a row's mode is a periodic evaluation's (greedy or sampled).
+pub fn is_periodic(mode: &str) -> bool {
+    mode == PERIODIC || mode == PERIODIC_SAMPLE
+}
+
 /// One evaluation.
 #[derive(Debug, Clone, PartialEq)]
 pub struct EvalRow {
@@ -33,7 +43,7 @@ pub struct EvalRow {
     pub world: String,
     /// The layouts of a family played (empty for one world).
     pub layouts: String,
-    /// `greedy`, `sample` or [`PERIODIC`].
+    /// `greedy`, `sample`, [`PERIODIC`] or [`PERIODIC_SAMPLE`].
     pub mode: String,
     /// The sampling seed.
     pub seed: u64,
@@ -165,7 +175,7 @@ pub fn trim_periodic(path: &Path, update: u64) -> std::io::Result<Vec<EvalRow>> 
     out.push('\n');
     let mut kept = Vec::new();
     for row in text.lines().filter_map(EvalRow::parse) {
-        let periodic = row.mode == PERIODIC;
+        let periodic = is_periodic(&row.mode);
         if periodic && row.update > update {
             continue;
         }
@@ -220,16 +230,17 @@ mod tests {
         let rows = [
             row(2, PERIODIC),
             row(3, "greedy"),
-            row(4, PERIODIC),
+            row(4, PERIODIC_SAMPLE),
             row(6, PERIODIC),
             row(9, "sample"),
+            row(7, PERIODIC_SAMPLE),
         ];
         for r in &rows {
             append(&path, r).unwrap();
         }
         let text = std::fs::read_to_string(&path).unwrap();
         assert_eq!(text.lines().next(), Some(EVAL_COLUMNS));
-        assert_eq!(text.lines().count(), 6);
+        assert_eq!(text.lines().count(), 7);
         assert_eq!(read(&path).unwrap(), rows);
         // A torn last line (a crash mid-write) is dropped with the later periodic rows.
         std::fs::write(&path, format!("{text}5,5120,room,train-gr")).unwrap();

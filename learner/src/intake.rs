@@ -81,6 +81,7 @@ mod tests {
             checkpoint_every: 10,
             eval_every: 0,
             eval_episodes: 10,
+            eval_sample: false,
             action_mask: mask,
             view: fulcrum_world::View::Full,
             intrinsic_value_head: two_heads,

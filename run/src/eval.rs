@@ -16,7 +16,7 @@ use std::path::Path;
 use crate::error::Result;
 use fulcrum_actors::policy::Policy;
 use fulcrum_contracts::config::RunConfig;
-use fulcrum_learner::evalcsv::{EvalRow, PERIODIC};
+use fulcrum_learner::evalcsv::{EvalRow, PERIODIC, PERIODIC_SAMPLE};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_learner::process::Evaluate;
 use fulcrum_world::{View, World};
@@ -258,7 +258,8 @@ pub fn episode(
 }
 
 /// The periodic evaluation of `train --eval-every`: the learner's weights played
-/// greedily for the run's `eval_episodes` episodes on its world (on a family, one
+/// greedily (sampled with `eval_sample`, seeded by the run's seed, as `fulcrum eval
+/// --sample`) for the run's `eval_episodes` episodes on its world (on a family, one
 /// episode on each of the held-out layouts `test:eval_episodes`), as a row of
 /// `eval.csv` (the learner fills in the update and env steps).
 pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Result<Evaluate<'a>> {
@@ -286,10 +287,15 @@ pub fn periodic<'a>(cfg: &'a RunConfig, world: &'a World) -> Result<Evaluate<'a>
             cfg.view,
             &worlds,
             cfg.eval_episodes,
-            true,
+            !cfg.eval_sample,
             cfg.seed,
         );
-        let mut row = summarise(&eps).row(0, 0, &world.name, PERIODIC, cfg.seed);
+        let mode = if cfg.eval_sample {
+            PERIODIC_SAMPLE
+        } else {
+            PERIODIC
+        };
+        let mut row = summarise(&eps).row(0, 0, &world.name, mode, cfg.seed);
         row.layouts = label.clone();
         Ok(row)
     }))

@@ -164,6 +164,9 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
         if let Some(n) = r.eval_episodes {
             cfg.eval_episodes = n;
         }
+        if r.eval_sample {
+            cfg.eval_sample = true;
+        }
         if let Some(l) = r.max_policy_lag {
             cfg.max_policy_lag = l;
         }
@@ -302,6 +305,7 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
         checkpoint_every: r.checkpoint_every.unwrap_or(10),
         eval_every: r.eval_every.unwrap_or(0),
         eval_episodes: r.eval_episodes.unwrap_or(10),
+        eval_sample: r.eval_sample,
         remote: request.remote,
         stall_timeout_s: request.stall_timeout.unwrap_or(10.0),
         action_mask: a.action_mask(),

@@ -162,7 +162,8 @@ pub struct Resumable {
     #[arg(long)]
     pub checkpoint_every: Option<u64>,
     /// Evaluate the policy every U updates (and after the last): --eval-episodes
-    /// episodes with greedy actions (the most probable allowed action), a row in
+    /// episodes with greedy actions (the most probable allowed action; sampled with
+    /// --eval-sample), a row in
     /// RUN/eval.csv and eval/* scalars in TensorBoard [default: 0, never]. A resume may
     /// change it.
     #[arg(long, value_name = "U")]
@@ -171,6 +172,11 @@ pub struct Resumable {
     /// are deterministic, so a greedy evaluation's episodes are one episode repeated.
     #[arg(long, value_name = "N")]
     pub eval_episodes: Option<usize>,
+    /// Play the periodic evaluation with actions sampled from the policy (seeded by the
+    /// run's seed) instead of greedy: rows of mode `train-sample`. A policy that has not
+    /// converged on many layouts is judged by its sampled play. A resume may turn it on.
+    #[arg(long)]
+    pub eval_sample: bool,
 }
 
 impl Fixed {

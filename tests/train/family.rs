@@ -49,6 +49,67 @@ fn rows(dir: &TempDir) -> Vec<EvalRow> {
         .collect()
 }
 
+// `--eval-sample`: the periodic evaluations sample their actions, seeded by the run's
+// seed, so the one after the last update is `fulcrum eval --sample` of the final
+// checkpoint on the same held-out layouts, figure for figure.
+#[test]
+fn a_family_run_can_be_evaluated_sampled_during_training() {
+    let dir = TempDir::fresh("family-eval-sample");
+    let d = dir.to_str().unwrap();
+    let (s, err, _) = finish(
+        train(
+            &[
+                &[
+                    "toolbox",
+                    "--layouts",
+                    "4",
+                    "--actors",
+                    "1",
+                    "--steps",
+                    "256",
+                ][..],
+                &[
+                    "--eval-every",
+                    "1",
+                    "--eval-episodes",
+                    "40",
+                    "--eval-sample",
+                ],
+                &["--out", d],
+                SMALL,
+            ]
+            .concat(),
+        ),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    let config = std::fs::read_to_string(dir.join("config.toml")).unwrap();
+    assert!(config.contains("eval_sample = true"), "{config}");
+    let periodic = rows(&dir);
+    assert_eq!(periodic.len(), 2);
+    for r in &periodic {
+        assert_eq!(
+            (r.mode.as_str(), r.layouts.as_str(), r.episodes),
+            ("train-sample", "test:40", 40),
+            "{r:?}"
+        );
+    }
+    let o = eval(d, &["--layouts", "test:40", "--sample"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let all = rows(&dir);
+    let (last, by_eval) = (&all[1], &all[2]);
+    assert_eq!((by_eval.mode.as_str(), by_eval.update), ("sample", 2));
+    assert_eq!(last.update, 2);
+    let figures = |r: &EvalRow| (r.success, r.ret, r.length, r.tool_use, r.tool_choice);
+    assert_eq!(figures(last), figures(by_eval));
+    // Sampled play is not greedy play: 40 greedy episodes give other lengths.
+    let o = eval(d, &["--layouts", "test:40"]);
+    assert!(o.status.success());
+    let greedy = &rows(&dir)[3];
+    assert_eq!(greedy.mode, "greedy");
+    assert_ne!(greedy.length, by_eval.length);
+}
+
 #[test]
 fn a_family_run_is_evaluated_on_held_out_and_training_layouts() {
     let dir = TempDir::fresh("family-eval");
