@@ -54,35 +54,11 @@ fn rows(dir: &TempDir) -> Vec<EvalRow> {
 // checkpoint on the same held-out layouts, figure for figure.
 #[test]
 fn a_family_run_can_be_evaluated_sampled_during_training() {
-    let dir = TempDir::fresh("family-eval-sample");
-    let d = dir.to_str().unwrap();
-    let (s, err, _) = finish(
-        train(
-            &[
-                &[
-                    "toolbox",
-                    "--layouts",
-                    "4",
-                    "--actors",
-                    "1",
-                    "--steps",
-                    "256",
-                ][..],
-                &[
-                    "--eval-every",
-                    "1",
-                    "--eval-episodes",
-                    "40",
-                    "--eval-sample",
-                ],
-                &["--out", d],
-                SMALL,
-            ]
-            .concat(),
-        ),
-        Duration::from_secs(120),
+    let dir = trained_on_four(
+        "family-eval-sample",
+        &["--eval-episodes", "40", "--eval-sample"],
     );
-    assert!(s.success(), "{err}");
+    let d = dir.to_str().unwrap();
     let config = std::fs::read_to_string(dir.join("config.toml")).unwrap();
     assert!(config.contains("eval_sample = true"), "{config}");
     let periodic = rows(&dir);
@@ -110,35 +86,37 @@ fn a_family_run_can_be_evaluated_sampled_during_training() {
     assert_ne!(greedy.length, by_eval.length);
 }
 
+/// `train toolbox --layouts 4` for two updates of [`SMALL`] chunks, evaluated after
+/// each (`--eval-every 1`) with `extra`; its run directory.
+fn trained_on_four(tag: &str, extra: &[&str]) -> TempDir {
+    let dir = TempDir::fresh(tag);
+    let d = dir.to_str().unwrap();
+    let head = [
+        "toolbox",
+        "--layouts",
+        "4",
+        "--actors",
+        "1",
+        "--steps",
+        "256",
+    ];
+    let args = [
+        &head[..],
+        &["--eval-every", "1"],
+        extra,
+        &["--out", d],
+        SMALL,
+    ]
+    .concat();
+    let (s, err, _) = finish(train(&args), Duration::from_secs(120));
+    assert!(s.success(), "{err}");
+    dir
+}
+
 #[test]
 fn a_family_run_is_evaluated_on_held_out_and_training_layouts() {
-    let dir = TempDir::fresh("family-eval");
+    let dir = trained_on_four("family-eval", &["--eval-episodes", "6"]);
     let d = dir.to_str().unwrap();
-    let (s, err, _) = finish(
-        train(
-            &[
-                &[
-                    "toolbox",
-                    "--layouts",
-                    "4",
-                    "--actors",
-                    "1",
-                    "--steps",
-                    "256",
-                    "--eval-every",
-                    "1",
-                    "--eval-episodes",
-                    "6",
-                    "--out",
-                    d,
-                ][..],
-                SMALL,
-            ]
-            .concat(),
-        ),
-        Duration::from_secs(120),
-    );
-    assert!(s.success(), "{err}");
     let config = std::fs::read_to_string(dir.join("config.toml")).unwrap();
     assert!(config.contains("layouts = \"4\""), "{config}");
     // The periodic rows: one episode on each of the first 6 held-out layouts.
