@@ -19,7 +19,6 @@ OUT=${OUT:-experiments/layouts}
 LAYOUTS=${LAYOUTS:-16 256 all}
 PARALLEL=${PARALLEL:-1}
 CSV=docs/results/layouts-evals.csv
-HEAD=layouts_trained,arm,train_seed,update,env_steps,world,layouts,mode,seed,episodes,success,success_lo,success_hi,return,return_lo,return_hi,length,length_lo,length_hi,tool_use,tool_use_lo,tool_use_hi,tool_choice,tool_choice_lo,tool_choice_hi
 for n in $LAYOUTS; do
   "$FULCRUM" experiment toolbox --seeds 10 --steps 2000896 \
     --arms baseline,horizon-potential,additive --parallel "$PARALLEL" --out "$OUT/$n" -- --layouts "$n"
@@ -35,8 +34,10 @@ for n in $LAYOUTS; do
   done
   cp "$OUT/$n/summary.json" "docs/results/layouts-$n-summary.json"
 done
+first=${LAYOUTS%% *}
 {
-  echo "$HEAD"
+  # eval.csv's own header, behind the three columns this file adds.
+  echo "layouts_trained,arm,train_seed,$(head -1 "$(ls "$OUT/$first"/runs/*/seed-*/eval.csv | head -1)")"
   if [ -f "$CSV" ]; then
     # The committed rows of the settings not run now.
     tail -n +2 "$CSV" | while IFS= read -r row; do
