@@ -369,12 +369,23 @@ impl Family {
     /// Layout `seed` as a world file's text (see the module docs); refused when no draw
     /// of [`MAX_DRAWS`] can be solved within `max_steps`.
     pub fn layout_text(&self, seed: u64) -> Result<String, WorldError> {
+        self.draw_solvable(seed).map(|(text, _)| text)
+    }
+
+    /// Layout `seed`, parsed.
+    pub fn layout(&self, seed: u64) -> Result<World, WorldError> {
+        self.draw_solvable(seed).map(|(_, w)| w)
+    }
+
+    /// The first draw of layout `seed` whose task can be done within an episode: its
+    /// text and the world parsed from it.
+    fn draw_solvable(&self, seed: u64) -> Result<(String, World), WorldError> {
         let mut rng = ChaCha8Rng::seed_from_u64(seed);
         for _ in 0..MAX_DRAWS {
             let text = self.draw(&mut rng, seed);
             let w = parse_world(&text, &format!("{}-{seed}", self.name))?;
             if fewest_steps_to_task(&w, w.max_steps).is_some() {
-                return Ok(text);
+                return Ok((text, w));
             }
         }
         Err(WorldError::File {
@@ -384,12 +395,6 @@ impl Family {
                 self.max_steps
             ),
         })
-    }
-
-    /// Layout `seed`, parsed.
-    pub fn layout(&self, seed: u64) -> Result<World, WorldError> {
-        let text = self.layout_text(seed)?;
-        parse_world(&text, &format!("{}-{seed}", self.name))
     }
 
     /// The content hash of the family file (FNV-1a of its text, as

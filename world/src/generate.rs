@@ -156,12 +156,12 @@ pub fn generate(p: &GenParams) -> Result<String, GenError> {
 /// done within `limit` steps (an object walled in, no tool that fits it, a tool out of
 /// reach).
 pub fn fewest_steps_to_task(w: &World, limit: u32) -> Option<u32> {
-    use std::collections::HashSet;
     if w.task == Task::None {
         return None;
     }
     let start = (w.initial, 0u16);
-    let mut seen: HashSet<(State, u16)> = HashSet::from([start]);
+    let mut seen: crate::hash::FastSet<(State, u16)> = crate::hash::FastSet::default();
+    seen.insert(start);
     let mut frontier = vec![start];
     let actions = w.num_actions() as u8;
     for depth in 1..=limit {
