@@ -153,8 +153,7 @@ impl Client {
 
     fn fetch_describe(&mut self) -> Result<Describe, ClientError> {
         self.send(kind::DESCRIBE, &[], None, 0, 0, 0)?;
-        let (resp, _) = self.receive_one()?;
-        Ok(resp.describe)
+        self.receive_with(|r| r.describe)
     }
 
     /// Send one request (at most [`MAX_BATCH`] states) without waiting for its answer.
@@ -245,7 +244,7 @@ impl Client {
 
     /// Wait for the oldest request's whole answer, whatever its status.
     pub fn recv_response(&mut self) -> Result<Box<EmpResponse>, ClientError> {
-        Ok(self.receive_one()?.0)
+        self.receive_with(|r| Box::new(*r))
     }
 
     /// Loan a request, write its header and `n` state slots from `slot`, send it.
@@ -309,14 +308,13 @@ impl Client {
 
     /// Wait for the oldest request's answer.
     pub fn recv(&mut self) -> Result<Batch, ClientError> {
-        let (resp, n) = self.receive_one()?;
-        if resp.status != status::OK {
-            return Err(ClientError::Refused(resp.status));
-        }
-        Ok(Batch {
-            values: resp.values[..n].to_vec(),
-            status: resp.item_status[..n].to_vec(),
-        })
+        self.receive_with(|r| {
+            let n = answered(r)?;
+            Ok(Batch {
+                values: r.values[..n].to_vec(),
+                status: r.item_status[..n].to_vec(),
+            })
+        })?
     }
 
     /// Wait for the oldest request's answer and copy it into `values` / `status`.
@@ -325,19 +323,19 @@ impl Client {
         values: &mut [f32],
         item_status: &mut [u8],
     ) -> Result<usize, ClientError> {
-        let (resp, n) = self.receive_one()?;
-        if resp.status != status::OK {
-            return Err(ClientError::Refused(resp.status));
-        }
-        values[..n].copy_from_slice(&resp.values[..n]);
-        item_status[..n].copy_from_slice(&resp.item_status[..n]);
-        Ok(n)
+        self.receive_with(|r| {
+            let n = answered(r)?;
+            values[..n].copy_from_slice(&r.values[..n]);
+            item_status[..n].copy_from_slice(&r.item_status[..n]);
+            Ok(n)
+        })?
     }
 
-    /// Wait for the oldest request's answer: poll `spin` (yielding the core between looks:
-    /// the service may be waiting for it), then block on the listener,
-    /// checking every 100 ms that the service is still there.
-    fn receive_one(&mut self) -> Result<(Box<EmpResponse>, usize), ClientError> {
+    /// Wait for the oldest request's answer and read it with `read`, in the shared
+    /// memory it arrived in (only what `read` takes is copied): poll `spin` (yielding the
+    /// core between looks: the service may be waiting for it), then block on the
+    /// listener, checking every 100 ms that the service is still there.
+    fn receive_with<T>(&mut self, read: impl FnOnce(&EmpResponse) -> T) -> Result<T, ClientError> {
         let Some((pending, seq)) = self.in_flight.pop_front() else {
             return Err(ClientError::Ipc("no request in flight".into()));
         };
@@ -348,8 +346,7 @@ impl Client {
                 Ok(Some(r)) => {
                     let p: &EmpResponse = r.payload();
                     if p.seq == seq {
-                        let n = (p.count as usize).min(MAX_BATCH);
-                        return Ok((Box::new(*p), n));
+                        return Ok(read(p));
                     }
                 }
                 Ok(None) => {}
@@ -374,8 +371,7 @@ impl Client {
                     || self.svc.dynamic_config().number_of_servers() == 0
                 {
                     if let Ok(Some(r)) = pending.receive() {
-                        let p: &EmpResponse = r.payload();
-                        return Ok((Box::new(*p), (p.count as usize).min(MAX_BATCH)));
+                        return Ok(read(r.payload()));
                     }
                     self.in_flight.clear();
                     return Err(ClientError::ServiceGone);
@@ -447,4 +443,12 @@ fn wait_for_server(
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// How many states an answer carries, or its refusal.
+fn answered(r: &EmpResponse) -> Result<usize, ClientError> {
+    if r.status != status::OK {
+        return Err(ClientError::Refused(r.status));
+    }
+    Ok((r.count as usize).min(MAX_BATCH))
 }
