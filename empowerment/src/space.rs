@@ -12,7 +12,10 @@
 //! range multiplied gives at most 2^20 keys (small worlds; every layout of the built-in
 //! families: 9,600 keys for a toolbox layout with a tree, 259,200 with a boulder), the
 //! key is that mixed-radix number and the index a direct table of ids: one array read a
-//! look-up instead of a hash probe (a third off enumerating a toolbox layout).
+//! look-up instead of a hash probe (a third off enumerating a toolbox layout). There the
+//! enumeration makes a level's successors as keys only (4 bytes each, not 38) and
+//! rebuilds a new state from its key when it numbers it, so its serial part is one
+//! table read a successor.
 //!
 //! Memory: `states` (38 B each), the successor table (`4 |A|` B each) and the index
 //! (16 to 60 B each, or a direct table of 4 B a key, 4 MiB at most): about
@@ -187,6 +190,30 @@ impl Packer {
         k as usize
     }
 
+    /// The state whose [`Packer::dense_trusted`] key is `k` (the unused object slots
+    /// and the reserved byte zero, as the dynamics leave them).
+    fn dense_state(&self, mut k: u64) -> State {
+        let mut s = State::default();
+        for (i, &(_, max, boulder)) in self.objects.iter().enumerate().rev() {
+            let radix = max as u64 + 1;
+            let v = (k % radix) as u16;
+            k /= radix;
+            s.objects[i] = if boulder && v == self.cells {
+                fulcrum_world::BOULDER_DESTROYED
+            } else {
+                v
+            };
+        }
+        s.inventory = (k & ((1u64 << self.tools) - 1)) as u16;
+        k >>= self.tools;
+        let modes = self.max_mode as u64 + 1;
+        s.mode = (k % modes) as u8;
+        let cell = k / modes;
+        s.x = (cell % self.width as u64) as u8;
+        s.y = (cell / self.width as u64) as u8;
+        s
+    }
+
     /// [`Packer::pack`] without the range checks, for states the dynamics made.
     #[inline]
     fn pack_trusted(&self, s: &State) -> u64 {
@@ -357,6 +384,18 @@ impl StateSpace {
         index.reserve(1 << 12);
         index.get_or_insert(&world.initial, 0);
         let mut succ: Vec<u32> = Vec::new();
+        if let Index::Dense(p, table) = &mut index {
+            Self::enumerate_dense(world, p, table, &mut states, &mut succ, limits)?;
+            return Ok(StateSpace {
+                states,
+                index,
+                succ,
+                actions: na,
+                out_start: Vec::new(),
+                out_ids: Vec::new(),
+                out_probs: Vec::new(),
+            });
+        }
         let mut start = 0;
         while start < states.len() {
             let end = states.len();
@@ -408,6 +447,69 @@ impl StateSpace {
             out_ids: Vec::new(),
             out_probs: Vec::new(),
         })
+    }
+
+    /// [`StateSpace::enumerate`] where the index is a direct table: a level's successors
+    /// are made as their keys only (4 bytes each, in parallel for a large level), and a
+    /// new state is rebuilt from its key when it is numbered, so the serial part is one
+    /// table read a successor. The same order as the general path, so the same ids.
+    fn enumerate_dense(
+        world: &World,
+        p: &Packer,
+        table: &mut [u32],
+        states: &mut Vec<State>,
+        succ: &mut Vec<u32>,
+        limits: &Limits,
+    ) -> Result<(), EngineError> {
+        let na = world.num_actions();
+        let max_states = (limits.max_bytes / bytes_per_state(na)).min(u32::MAX as usize - 1);
+        let key = |s: &State, a: u8| -> u32 {
+            let n = world.step(s, a);
+            debug_assert!(p.in_range(&n));
+            p.dense_trusted(&n) as u32
+        };
+        let mut keys: Vec<u32> = Vec::new();
+        let mut start = 0;
+        while start < states.len() {
+            let end = states.len();
+            keys.clear();
+            keys.resize((end - start) * na, 0);
+            if end - start >= 2048 {
+                keys.par_chunks_mut(na)
+                    .zip(&states[start..end])
+                    .with_min_len(256)
+                    .for_each(|(k, s)| {
+                        for (a, k) in k.iter_mut().enumerate() {
+                            *k = key(s, a as u8);
+                        }
+                    });
+            } else {
+                for (k, s) in keys.chunks_mut(na).zip(&states[start..end]) {
+                    for (a, k) in k.iter_mut().enumerate() {
+                        *k = key(s, a as u8);
+                    }
+                }
+            }
+            succ.reserve(keys.len());
+            for &k in &keys {
+                let slot = &mut table[k as usize];
+                if *slot == NO_ID {
+                    *slot = states.len() as u32;
+                    states.push(p.dense_state(k as u64));
+                }
+                succ.push(*slot);
+            }
+            if states.len() > max_states {
+                return Err(EngineError::StateSpaceTooLarge {
+                    world: world.name.clone(),
+                    states: states.len(),
+                    bytes: states.len() * bytes_per_state(na),
+                    limit: limits.max_bytes,
+                });
+            }
+            start = end;
+        }
+        Ok(())
     }
 
     /// [`StateSpace::enumerate`] of a stochastic world: breadth-first over every outcome
@@ -574,6 +676,66 @@ impl StateSpace {
 mod tests {
     use super::*;
     use fulcrum_world::load_world;
+
+    /// The states in the order of a plain breadth-first search (a FIFO queue, actions in
+    /// order, a hash map for the ids) and its successor table: the reference the
+    /// level-by-level enumeration must equal, id for id.
+    fn reference_bfs(w: &World) -> (Vec<State>, Vec<u32>) {
+        let mut ids: FastMap<State, u32> = FastMap::default();
+        ids.insert(w.initial, 0);
+        let (mut states, mut succ) = (vec![w.initial], Vec::new());
+        let mut i = 0;
+        while i < states.len() {
+            let s = states[i];
+            for a in 0..w.num_actions() as u8 {
+                let n = w.step(&s, a);
+                let next = states.len() as u32;
+                let id = *ids.entry(n).or_insert(next);
+                if id == next {
+                    states.push(n);
+                }
+                succ.push(id);
+            }
+            i += 1;
+        }
+        (states, succ)
+    }
+
+    #[test]
+    fn the_direct_tables_enumeration_equals_a_plain_breadth_first_search() {
+        let f = fulcrum_world::family::load_family("toolbox").unwrap();
+        // A boulder layout among the largest of the first thousand (58,910 states).
+        let boulder = f.layout(492).unwrap();
+        assert_eq!(boulder.objects[0].kind, fulcrum_world::ObjectKind::Boulder);
+        let two_rooms = fulcrum_world::family::load_family("two-rooms")
+            .unwrap()
+            .layout(3)
+            .unwrap();
+        let mut sizes = Vec::new();
+        for w in [load_world("exp3").unwrap(), boulder, two_rooms] {
+            let sp = StateSpace::enumerate(&w, &Limits::default()).unwrap();
+            assert!(
+                matches!(sp.index, Index::Dense(..)),
+                "{}: a direct table",
+                w.name
+            );
+            sizes.push(sp.len());
+            let (states, succ) = reference_bfs(&w);
+            assert!(
+                sp.states() == states.as_slice(),
+                "{}: the same states in the same order",
+                w.name
+            );
+            assert!(
+                sp.succ_table() == succ.as_slice(),
+                "{}: the same successors",
+                w.name
+            );
+        }
+        // exp3 and the boulder layout are large enough that their widest levels take the
+        // parallel path (2,048 states or more), the door layout small enough that none does.
+        assert_eq!(sizes, [52_051, 58_910, 3_797]);
+    }
 
     #[test]
     fn every_state_finds_its_own_id_and_garbage_finds_none() {
