@@ -370,6 +370,26 @@ pub fn bytes_per_state(actions: usize) -> usize {
     38 + 4 * actions + 64
 }
 
+/// The refusal of a space that has grown past `limits` after a level: `states` states
+/// found so far, `per_state` bytes each.
+fn check_size(
+    world: &World,
+    states: usize,
+    per_state: usize,
+    limits: &Limits,
+) -> Result<(), EngineError> {
+    let max_states = (limits.max_bytes / per_state).min(u32::MAX as usize - 1);
+    if states > max_states {
+        return Err(EngineError::StateSpaceTooLarge {
+            world: world.name.clone(),
+            states,
+            bytes: states * per_state,
+            limit: limits.max_bytes,
+        });
+    }
+    Ok(())
+}
+
 impl StateSpace {
     /// Enumerate the states reachable from `world.initial`. Refuses, with the estimate,
     /// when the space would outgrow `limits.max_bytes`.
@@ -378,24 +398,38 @@ impl StateSpace {
             return Self::enumerate_stochastic(world, limits);
         }
         let na = world.num_actions();
-        let max_states = (limits.max_bytes / bytes_per_state(na)).min(u32::MAX as usize - 1);
         let mut states = vec![world.initial];
         let mut index = Index::new(world);
         index.reserve(1 << 12);
         index.get_or_insert(&world.initial, 0);
         let mut succ: Vec<u32> = Vec::new();
-        if let Index::Dense(p, table) = &mut index {
-            Self::enumerate_dense(world, p, table, &mut states, &mut succ, limits)?;
-            return Ok(StateSpace {
-                states,
-                index,
-                succ,
-                actions: na,
-                out_start: Vec::new(),
-                out_ids: Vec::new(),
-                out_probs: Vec::new(),
-            });
+        match &mut index {
+            Index::Dense(p, table) => {
+                Self::enumerate_dense(world, p, table, &mut states, &mut succ, limits)?
+            }
+            index => Self::enumerate_indexed(world, index, &mut states, &mut succ, limits)?,
         }
+        Ok(StateSpace {
+            states,
+            index,
+            succ,
+            actions: na,
+            out_start: Vec::new(),
+            out_ids: Vec::new(),
+            out_probs: Vec::new(),
+        })
+    }
+
+    /// [`StateSpace::enumerate`] with a hashed index: level by level from `states`
+    /// (the initial state, numbered), each successor numbered in (state, action) order.
+    fn enumerate_indexed(
+        world: &World,
+        index: &mut Index,
+        states: &mut Vec<State>,
+        succ: &mut Vec<u32>,
+        limits: &Limits,
+    ) -> Result<(), EngineError> {
+        let na = world.num_actions();
         let mut start = 0;
         while start < states.len() {
             let end = states.len();
@@ -428,25 +462,10 @@ impl StateSpace {
                     }
                 }
             }
-            if states.len() > max_states {
-                return Err(EngineError::StateSpaceTooLarge {
-                    world: world.name.clone(),
-                    states: states.len(),
-                    bytes: states.len() * bytes_per_state(na),
-                    limit: limits.max_bytes,
-                });
-            }
+            check_size(world, states.len(), bytes_per_state(na), limits)?;
             start = end;
         }
-        Ok(StateSpace {
-            states,
-            index,
-            succ,
-            actions: na,
-            out_start: Vec::new(),
-            out_ids: Vec::new(),
-            out_probs: Vec::new(),
-        })
+        Ok(())
     }
 
     /// [`StateSpace::enumerate`] where the index is a direct table: a level's successors
@@ -462,7 +481,6 @@ impl StateSpace {
         limits: &Limits,
     ) -> Result<(), EngineError> {
         let na = world.num_actions();
-        let max_states = (limits.max_bytes / bytes_per_state(na)).min(u32::MAX as usize - 1);
         let key = |s: &State, a: u8| -> u32 {
             let n = world.step(s, a);
             debug_assert!(p.in_range(&n));
@@ -499,14 +517,7 @@ impl StateSpace {
                 }
                 succ.push(*slot);
             }
-            if states.len() > max_states {
-                return Err(EngineError::StateSpaceTooLarge {
-                    world: world.name.clone(),
-                    states: states.len(),
-                    bytes: states.len() * bytes_per_state(na),
-                    limit: limits.max_bytes,
-                });
-            }
+            check_size(world, states.len(), bytes_per_state(na), limits)?;
             start = end;
         }
         Ok(())
@@ -517,7 +528,6 @@ impl StateSpace {
     fn enumerate_stochastic(world: &World, limits: &Limits) -> Result<StateSpace, EngineError> {
         let na = world.num_actions();
         let per_state = bytes_per_state(na) + na * 4 * 12;
-        let max_states = (limits.max_bytes / per_state).min(u32::MAX as usize - 1);
         let mut states = vec![world.initial];
         let mut index = Index::new(world);
         index.reserve(1 << 12);
@@ -564,14 +574,7 @@ impl StateSpace {
                 }
                 out_start.push(out_ids.len() as u32);
             }
-            if states.len() > max_states {
-                return Err(EngineError::StateSpaceTooLarge {
-                    world: world.name.clone(),
-                    states: states.len(),
-                    bytes: states.len() * per_state,
-                    limit: limits.max_bytes,
-                });
-            }
+            check_size(world, states.len(), per_state, limits)?;
             start = end;
         }
         debug_assert_eq!(out_start.len(), states.len() * na + 1);
