@@ -740,6 +740,52 @@ mod tests {
         assert_eq!(sizes, [52_051, 58_910, 3_797]);
     }
 
+    /// Each enumeration (direct table: exp3; hashed: exp2; stochastic: exp2-slip) refuses
+    /// a space that outgrows its memory, naming the states it found and their bytes, and
+    /// succeeds with room for exactly the states it has (worlds/EXPECTED.md: 52,051 and
+    /// 10,988 states; exp2-slip has exp2's, every outcome of a slip being some action's
+    /// intended one; per state 38 + 4 |A| + 64 bytes, and 48 |A| more where stochastic).
+    #[test]
+    fn a_space_past_its_memory_is_refused_after_the_level_that_outgrows_it() {
+        for (name, states, stochastic) in [
+            ("exp3", 52_051, false),
+            ("exp2", 10_988, false),
+            ("exp2-slip", 10_988, true),
+        ] {
+            let w = load_world(name).unwrap();
+            let na = w.num_actions();
+            let per_state = bytes_per_state(na) + if stochastic { na * 48 } else { 0 };
+            let fits = Limits {
+                max_bytes: states * per_state,
+            };
+            assert_eq!(
+                StateSpace::enumerate(&w, &fits).unwrap().len(),
+                states,
+                "{name}"
+            );
+            let short = Limits {
+                max_bytes: states * per_state - 1,
+            };
+            match StateSpace::enumerate(&w, &short) {
+                Err(EngineError::StateSpaceTooLarge {
+                    states: found,
+                    bytes,
+                    limit,
+                    ..
+                }) => {
+                    // The last level is the one past the limit: every state is found.
+                    assert_eq!(found, states, "{name}");
+                    assert_eq!(
+                        (bytes, limit),
+                        (found * per_state, short.max_bytes),
+                        "{name}"
+                    );
+                }
+                other => panic!("{name}: {other:?}"),
+            }
+        }
+    }
+
     #[test]
     fn every_state_finds_its_own_id_and_garbage_finds_none() {
         // exp2's keys are too many for a direct table (4 tools, a boulder and a door),
