@@ -710,6 +710,31 @@ fn serve_run_reads_everything_from_the_runs_config() {
     assert_eq!(refused.status.code(), Some(2));
 }
 
+/// The kernel's transparent-huge-page flag of a process (`THP_enabled` in its
+/// /proc status: 0 once it has asked for ordinary pages).
+fn thp_enabled(pid: u32) -> String {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).unwrap();
+    status
+        .lines()
+        .find_map(|l| l.strip_prefix("THP_enabled:"))
+        .unwrap_or_else(|| {
+            panic!("no THP_enabled line in /proc/{pid}/status: a kernel before 5.0?")
+        })
+        .trim()
+        .to_string()
+}
+
+/// A family's service, which makes a table's working memory and drops it for every
+/// layout it meets, runs on ordinary pages; one world's service, whose one table is made
+/// at its start, keeps the transparent huge pages it was started with.
+#[test]
+fn a_family_service_asks_for_ordinary_pages_and_one_worlds_does_not() {
+    let family = Serve::start("toolbox", &namespace("thp-family"), &[]);
+    assert_eq!(thp_enabled(family.child.id()), "0");
+    let one = Serve::start("exp1-tree", &namespace("thp-one"), &[]);
+    assert_eq!(thp_enabled(one.child.id()), "1");
+}
+
 /// `fulcrum serve FAMILY`: lookups name each state's layout, a training layout and a
 /// held-out one in one request, and the answers are the values of the layout made as one
 /// world (the engine on the layout's own states: Phi with --horizon-sum); a state is read
