@@ -56,12 +56,24 @@ impl Projection {
     /// Project every state of `space` onto `set`.
     pub fn new(space: &StateSpace, set: &ObjectSet) -> Projection {
         let mut map: FastMap<[u16; 16], u32> = FastMap::default();
+        // States next to each other in breadth-first order mostly share their
+        // projection (the objects change far less often than the agent moves): the last
+        // one's id is checked before the map.
+        let mut last: Option<([u16; 16], u32)> = None;
         let ids = space
             .states()
             .iter()
             .map(|s| {
-                let n = map.len() as u32;
-                *map.entry(project_key(set, s)).or_insert(n)
+                let k = project_key(set, s);
+                match last {
+                    Some((lk, id)) if lk == k => id,
+                    _ => {
+                        let n = map.len() as u32;
+                        let id = *map.entry(k).or_insert(n);
+                        last = Some((k, id));
+                        id
+                    }
+                }
             })
             .collect();
         Projection {
