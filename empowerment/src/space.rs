@@ -492,21 +492,20 @@ impl StateSpace {
             let end = states.len();
             keys.clear();
             keys.resize((end - start) * na, 0);
-            if end - start >= 2048 {
-                keys.par_chunks_mut(na)
-                    .zip(&states[start..end])
-                    .with_min_len(256)
-                    .for_each(|(k, s)| {
-                        for (a, k) in k.iter_mut().enumerate() {
-                            *k = key(s, a as u8);
-                        }
-                    });
-            } else {
-                for (k, s) in keys.chunks_mut(na).zip(&states[start..end]) {
-                    for (a, k) in k.iter_mut().enumerate() {
-                        *k = key(s, a as u8);
-                    }
+            // One state's row of successor keys.
+            let row = |(k, s): (&mut [u32], &State)| {
+                for (a, k) in k.iter_mut().enumerate() {
+                    *k = key(s, a as u8);
                 }
+            };
+            let level = &states[start..end];
+            if level.len() >= 2048 {
+                keys.par_chunks_mut(na)
+                    .zip(level)
+                    .with_min_len(256)
+                    .for_each(row);
+            } else {
+                keys.chunks_mut(na).zip(level).for_each(row);
             }
             succ.reserve(keys.len());
             for &k in &keys {

@@ -283,9 +283,9 @@ fn serve_family(args: &ServeArgs) -> Result<Option<()>> {
 /// A family service that meets layouts on first sight makes and drops a table's working
 /// memory for each (several MB for a boulder layout); with huge pages each fresh touch of
 /// that memory zeroes 2 MB (a `perf record` of a fresh-layout run: 8% of its samples in
-/// the kernel's page clearing, most under the service's table making). With ordinary
-/// pages only what is touched is zeroed: side by side, `train toolbox --layouts all`
-/// took 5% less time and 6% less CPU (BENCHMARKS.md, "Training on a family"). A service
+/// the kernel's page clearing, most of them the service's). With ordinary pages only
+/// what is touched is zeroed: side by side, `train toolbox --layouts all` took a tenth
+/// less time and 6% less CPU (BENCHMARKS.md, "Training on a family"). A service
 /// whose tables are all made at its start keeps huge pages, which spare its look-ups
 /// TLB misses. Best effort: a kernel without the setting leaves things as they were.
 fn ordinary_pages() {
