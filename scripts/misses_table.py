@@ -8,6 +8,7 @@ the baseline and the two-sided log-rank test of the "solved by step t" curves (t
 tests as `fulcrum experiment`, written again here from their definitions). Standard
 library only."""
 import csv
+import json
 import math
 import os
 import sys
@@ -33,7 +34,29 @@ def fisher_two_sided(a, b, c, d):
     return min(1.0, sum(p(x) for x in range(lo, hi + 1) if p(x) <= here * (1 + 1e-7)))
 
 
+def from_experiments(dirs):
+    """docs/results/misses.csv from the experiments' summaries: a row per arm and seed."""
+    rows = []
+    for d in dirs:
+        with open(os.path.join(d, "summary.json")) as f:
+            summary = json.load(f)
+        world = os.path.splitext(os.path.basename(summary["world"]))[0]
+        for arm in summary["arms"]:
+            for r in arm["per_seed"]:
+                t = r["steps_to_threshold"]
+                rows.append([world, arm["name"], r["seed"], "" if t is None else int(t), f"{r['final_success']:.4f}"])
+    path = os.path.join(ROOT, "docs", "results", "misses.csv")
+    with open(path + ".tmp", "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["world", "arm", "seed", "steps_to_0.9", "final_success"])
+        w.writerows(rows)
+    os.replace(path + ".tmp", path)
+    print(f"wrote {path} ({len(rows)} rows)")
+
+
 def main():
+    if sys.argv[1:2] == ["--from-experiments"]:
+        return from_experiments(sys.argv[2:])
     runs = {}
     with open(os.path.join(ROOT, "docs", "results", "misses.csv")) as f:
         for r in csv.DictReader(f):

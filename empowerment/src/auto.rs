@@ -19,7 +19,7 @@
 //! |R^j_h(s)| for every h, tool and state (one byte each), from which:
 //!
 //! ```text
-//! column[j] = mean over normal s of log2 |R^j_{h_j(s)}(s)|    h_j(s) = selection's H_eq if s holds j, else H_uneq
+//! column[j] = mean over normal s of log2 |R^j_{H_sel}(s)|     (H_sel: the selection's one horizon)
 //! j*        = select(column)                                  (argmax, ties to the lower index, zeros: none)
 //! value(s)  = sum_{h=1..H_table} log2 |R^{j*}_h(s)|           (Phi, `horizon_sum`)
 //!           | log2 |R^{j*}_{h(s)}(s)|                         (otherwise)
@@ -54,14 +54,12 @@ pub struct AutoTable {
     pub values: Vec<f32>,
 }
 
-/// Horizons of one [`Engine::auto_table`]: the selection's (the world's
-/// `[empowerment]`) and the table's (the service's).
+/// Horizons of one [`Engine::auto_table`]: the selection's (one for every state and
+/// row, [`crate::request::selection_horizon`]) and the table's (the service's).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct AutoHorizons {
-    /// The selection's horizon where the tool is not held.
-    pub select_unequipped: u32,
-    /// The selection's horizon where it is held.
-    pub select_equipped: u32,
+    /// The selection's horizon.
+    pub select: u32,
     /// The table's horizon where the tool is not held.
     pub unequipped: u32,
     /// The table's horizon where it is held.
@@ -191,12 +189,7 @@ impl Engine<'_> {
         let world = self.world;
         let t = world.tools.len();
         let table_h = hz.unequipped.max(hz.equipped);
-        let all_h = [
-            hz.select_unequipped,
-            hz.select_equipped,
-            hz.unequipped,
-            hz.equipped,
-        ];
+        let all_h = [hz.select, hz.unequipped, hz.equipped];
         if world.is_stochastic()
             || !(1..=16).contains(&t)
             || all_h.iter().any(|&h| h == 0 || h > MAX_HORIZON)
@@ -239,16 +232,11 @@ impl Engine<'_> {
         let normal: Vec<u32> = self.space.normal_ids().collect();
         let column: Vec<f64> = (0..t)
             .map(|j| {
-                let tool = ToolSel::Tool(j);
-                normal_mean(normal.iter().map(|&i| {
-                    let s = i as usize;
-                    let h = if tool.held(&states[s]) {
-                        hz.select_equipped
-                    } else {
-                        hz.select_unequipped
-                    };
-                    log2[count(h, s, j) as usize]
-                }))
+                normal_mean(
+                    normal
+                        .iter()
+                        .map(|&i| log2[count(hz.select, i as usize, j) as usize]),
+                )
             })
             .collect();
         let tool = select(column.iter().copied());

@@ -3,8 +3,10 @@
 //!
 //! The matrix entry `[j, i]` is the mean of `E^h_{j,{i}}(s)` over the normal-mode states
 //! of the space, with `h = horizon_equipped` where tool j is held and
-//! `horizon_unequipped` elsewhere (`docs/world.md`). Tool selection for a column is its argmax,
-//! ties to the lower tool index, a column of zeros selects no tool (equation 6).
+//! `horizon_unequipped` elsewhere; tool selection (`tool = "auto"`) asks for one horizon,
+//! [`crate::request::selection_horizon`], for both, which keeps the rows comparable
+//! (`docs/world.md`). Selection for a column is its argmax, ties to the lower tool index,
+//! a column of zeros selects no tool (equation 6).
 //!
 //! In a stochastic world every value is a channel capacity ([`crate::stochastic`]) and
 //! comes with a gap: the capacity lies in `[value, value + gap]`; the gap is 0 wherever

@@ -92,6 +92,38 @@ pub fn tool_choice(world: &World, text: Option<&str>) -> Result<ToolChoice> {
     })
 }
 
+/// The one horizon of the tool selection (`tool = "auto"`, equation 6): the world's
+/// horizon where the tool is not held, for every state and every row.
+///
+/// One horizon for every row keeps the rows comparable: a tool that can do to an object
+/// everything another can do, and more, then never gets the smaller row. Horizons that
+/// switch by whether the row's own tool is held lose that (a row gets the short horizon
+/// in the states holding its tool, so the tool held in fewer states is favoured); on a
+/// boulder, which every tool pushes, that selected a tool with no rule for boulders over
+/// one that destroys them (`docs/world.md`, "Object empowerment").
+pub fn selection_horizon(world: &World) -> u32 {
+    world.empowerment.horizon_unequipped
+}
+
+/// The horizons (not held, held) of a matrix asked for with these options: `horizon`
+/// for both; else `horizon_unequipped` (or the world's [`selection_horizon`]) for both
+/// unless `horizon_equipped` is given, which asks for the matrix whose rows switch
+/// horizon where their tool is held. With no option the matrix is the selection's.
+pub fn matrix_horizons(
+    world: &World,
+    horizon: Option<u32>,
+    horizon_unequipped: Option<u32>,
+    horizon_equipped: Option<u32>,
+) -> (u32, u32) {
+    match horizon {
+        Some(h) => (h, h),
+        None => {
+            let hu = horizon_unequipped.unwrap_or_else(|| selection_horizon(world));
+            (hu, horizon_equipped.unwrap_or(hu))
+        }
+    }
+}
+
 /// The error of a tool selection that selects nothing.
 fn no_tool<T>(world: &World, set: &ObjectSet) -> Result<T> {
     bad(format!(
@@ -102,7 +134,7 @@ fn no_tool<T>(world: &World, set: &ObjectSet) -> Result<T> {
 }
 
 /// Parse a tool name (`all`, `auto`, a name, kind or letter); `auto` selects by the
-/// matrix column of `set` at the world's horizons.
+/// matrix column of `set` at the world's [`selection_horizon`].
 pub fn tool_sel(
     world: &World,
     engine: &Engine,
@@ -113,7 +145,7 @@ pub fn tool_sel(
 }
 
 /// [`tool_sel`], and with `auto` the matrix (one column, `set`'s, at the world's
-/// horizons) the selection came from, for saying why.
+/// [`selection_horizon`]) the selection came from, for saying why.
 pub fn tool_sel_with_column(
     world: &World,
     engine: &Engine,
@@ -135,13 +167,8 @@ fn resolve(
         ToolChoice::All => (ToolSel::All, None),
         ToolChoice::Tool(k) => (ToolSel::Tool(k), None),
         ToolChoice::Auto => {
-            let e = &world.empowerment;
-            let m = engine.matrix(
-                std::slice::from_ref(set),
-                e.horizon_unequipped,
-                e.horizon_equipped,
-                Method::Dp,
-            )?;
+            let h = selection_horizon(world);
+            let m = engine.matrix(std::slice::from_ref(set), h, h, Method::Dp)?;
             match m.selection[0] {
                 Some(k) => {
                     tracing::info!(tool = %m.tools[k], "tool selection");
@@ -168,10 +195,8 @@ pub fn lookup_table(
 ) -> Result<(ToolSel, Vec<f32>)> {
     let choice = tool_choice(world, text)?;
     if choice == ToolChoice::Auto {
-        let e = &world.empowerment;
         let hz = AutoHorizons {
-            select_unequipped: e.horizon_unequipped,
-            select_equipped: e.horizon_equipped,
+            select: selection_horizon(world),
             unequipped: horizon_unequipped,
             equipped: horizon_equipped,
             horizon_sum,

@@ -11,8 +11,8 @@ use fulcrum_empowerment::{Engine, Limits, Method};
 use fulcrum_world::family::load_family;
 use fulcrum_world::{load_world, ObjectSet, World};
 
-/// (selection's H_uneq, H_eq, table's H_uneq, H_eq)
-const HORIZONS: [(u32, u32, u32, u32); 3] = [(8, 3, 8, 3), (5, 6, 5, 6), (8, 3, 4, 7)];
+/// (selection's horizon, table's H_uneq, H_eq)
+const HORIZONS: [(u32, u32, u32); 4] = [(8, 8, 3), (5, 5, 6), (8, 4, 7), (3, 8, 3)];
 
 /// Compares every column of `w` under every horizon and form; the number of states
 /// compared.
@@ -21,14 +21,13 @@ fn compare(w: &World) -> usize {
     let mut compared = 0;
     for i in 0..w.objects.len() {
         let set = ObjectSet::Objects(vec![i]);
-        for (su, se, hu, he) in HORIZONS {
+        for (sh, hu, he) in HORIZONS {
             let m = engine
-                .matrix(std::slice::from_ref(&set), su, se, Method::Dp)
+                .matrix(std::slice::from_ref(&set), sh, sh, Method::Dp)
                 .unwrap();
             for horizon_sum in [false, true] {
                 let hz = AutoHorizons {
-                    select_unequipped: su,
-                    select_equipped: se,
+                    select: sh,
                     unequipped: hu,
                     equipped: he,
                     horizon_sum,
@@ -98,8 +97,7 @@ fn where_it_does_not_apply_it_says_so() {
     let engine = Engine::new(&w, Limits::default()).unwrap();
     let set = ObjectSet::Objects(vec![0]);
     let hz = AutoHorizons {
-        select_unequipped: 8,
-        select_equipped: 3,
+        select: 8,
         unequipped: 8,
         equipped: 3,
         horizon_sum: true,

@@ -139,6 +139,26 @@ fn exp3_matrix() {
     );
 }
 
+/// Tool selection's matrix of exp3: one horizon (10, the world's horizon where the tool
+/// is not held) for every state and row, from `tests/reference/exp3_bruteforce.py
+/// --horizon 10`. The boulder's column now selects the key: neither tool has a rule for
+/// a boulder, and the key opens the door the boulder can be pushed through.
+#[test]
+fn exp3_selection_matrix() {
+    check_matrix(
+        "exp3",
+        &[&["door"], &["boulder"], &["door", "boulder"]],
+        10,
+        10,
+        &[
+            &[0.661728062495791, 2.042360751798079, 2.4749743255786685],
+            &[0.20917233483736278, 2.0061106993148887, 2.155702806873758],
+        ],
+        &[Some("key"), Some("key"), Some("key")],
+        Method::Dp,
+    );
+}
+
 /// Cells of a landscape with a value, and the value at each.
 fn landscape(
     world: &str,

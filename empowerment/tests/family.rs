@@ -6,8 +6,8 @@
 //! The two routes share the engine's propagation but nothing else: the table is made
 //! from the layout in memory, its tool chosen per layout by the tables and its values
 //! from one propagation over every horizon; the reference reads the layout's TOML text
-//! as any world file is read, selects the tool from the engine's matrix (the paper's
-//! equation 6) and asks `Engine::values` once per horizon, choosing the horizon by what
+//! as any world file is read, selects the tool from the engine's matrix at the layout's
+//! one selection horizon, its `horizon_unequipped` (the paper's equation 6) and asks `Engine::values` once per horizon, choosing the horizon by what
 //! each state holds by hand.
 
 use fulcrum_empowerment::service::{FamilyConfig, FamilyTables};
@@ -54,8 +54,9 @@ fn tables_made_on_demand_equal_the_engine_on_the_layout_written_out() {
         // One task object per toolbox layout: it is the column.
         assert_eq!(w.objects.len(), 1, "layout {seed}");
         let set = fulcrum_world::ObjectSet::Objects(vec![0]);
+        let h = w.empowerment.horizon_unequipped;
         let m = engine
-            .matrix(std::slice::from_ref(&set), HU, HE, Method::Dp)
+            .matrix(std::slice::from_ref(&set), h, h, Method::Dp)
             .unwrap();
         let tool = ToolSel::Tool(m.selection[0].expect("a tool fits every toolbox layout"));
         let by_h: Vec<Vec<f64>> = (1..=HU)

@@ -33,7 +33,11 @@ def matrix(
     """The tool-object matrix (``"matrix"``: float64, tools x columns) and the tool
     selection of each column (equation (6): argmax, ties to the lower tool, ``None``
     for a column of zeros). ``objects`` are single-object columns (default: every
-    object), ``joint`` joint columns such as ``"boulder+door"``."""
+    object), ``joint`` joint columns such as ``"boulder+door"``. By default one horizon
+    for every state and row, the world's ``horizon_unequipped``: the matrix that
+    ``tool = "auto"`` selects from. ``horizon_equipped`` asks for rows that switch to it
+    where their own tool is held (rows that cannot be compared: a tool held in fewer
+    states is favoured)."""
     return _native.matrix(
         world,
         objects=_objects(objects, ","),

@@ -94,13 +94,12 @@ pub fn matrix<'py>(
     let pw = pw.get();
     let w = &*pw.world;
     let method = method_arg(method)?;
-    let (hu, he) = match horizon_arg(horizon)? {
-        Some(h) => (h, h),
-        None => (
-            horizon_arg(horizon_unequipped)?.unwrap_or(w.empowerment.horizon_unequipped),
-            horizon_arg(horizon_equipped)?.unwrap_or(w.empowerment.horizon_equipped),
-        ),
-    };
+    let (hu, he) = request::matrix_horizons(
+        w,
+        horizon_arg(horizon)?,
+        horizon_arg(horizon_unequipped)?,
+        horizon_arg(horizon_equipped)?,
+    );
     let columns = request::matrix_columns(w, objects, &joint).py_err()?;
     let e = pw.engine(py)?;
     let m = py.detach(|| e.matrix(&columns, hu, he, method)).py_err()?;

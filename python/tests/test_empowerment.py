@@ -26,6 +26,7 @@ def cli(fulcrum_bin, *args):
         ("exp1-tree", []),
         ("exp1-wall", ["--horizon", "4"]),
         ("exp3", ["--joint", "boulder+door"]),
+        ("exp3", ["--horizon-equipped", "5"]),
     ],
 )
 def test_matrix_equals_the_cli(fulcrum_bin, world, extra):
@@ -33,6 +34,8 @@ def test_matrix_equals_the_cli(fulcrum_bin, world, extra):
     kw = {}
     if "--horizon" in extra:
         kw["horizon"] = int(extra[extra.index("--horizon") + 1])
+    if "--horizon-equipped" in extra:
+        kw["horizon_equipped"] = int(extra[extra.index("--horizon-equipped") + 1])
     if "--joint" in extra:
         kw["joint"] = [extra[extra.index("--joint") + 1]]
     got = empowerment.matrix(world, **kw)
@@ -47,7 +50,7 @@ def test_matrix_equals_the_cli(fulcrum_bin, world, extra):
 def test_matrix_of_exp1_tree_is_the_recorded_one():
     # The entries recorded for exp1-tree (h_u 8, h_e 3): axe -> tree 0.046784 bits,
     # pickaxe -> wall 0.035088, every other 0; the selection axe for the tree.
-    m = empowerment.matrix("exp1-tree")
+    m = empowerment.matrix("exp1-tree", horizon_unequipped=8, horizon_equipped=3)
     assert m["matrix"][0, 0] == pytest.approx(0.046784, abs=5e-7)
     assert m["matrix"][1, 1] == pytest.approx(0.035088, abs=5e-7)
     assert m["matrix"][2:].sum() == 0.0

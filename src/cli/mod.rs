@@ -264,13 +264,16 @@ pub enum EmpCmd {
 pub struct MatrixArgs {
     /// A world file, or a built-in world (exp1-tree, exp1-wall, exp2, exp3, room, and the stochastic exp1-tree-slip, exp2-slip).
     pub world: String,
-    /// One horizon for held and not-held states.
+    /// One horizon for every state and row (default: the world's horizon_unequipped, the
+    /// one horizon of `tool = "auto"`'s selection).
     #[arg(long, conflicts_with_all = ["horizon_unequipped", "horizon_equipped"])]
     pub horizon: Option<u32>,
-    /// Horizon where the row's tool is not held (default: the world's).
+    /// Horizon where the row's tool is not held (and where it is, unless
+    /// --horizon-equipped is given).
     #[arg(long)]
     pub horizon_unequipped: Option<u32>,
-    /// Horizon where the row's tool is held (default: the world's).
+    /// Horizon where the row's tool is held: the matrix whose rows switch horizon (not
+    /// the selection's; such rows are not comparable, see docs/world.md).
     #[arg(long)]
     pub horizon_equipped: Option<u32>,
     /// Single-object columns, comma separated (default: every object).

@@ -71,6 +71,40 @@ fn matrix_json_exp1_tree() {
     assert!(v["elapsed_ms"].as_f64().unwrap() > 0.0);
 }
 
+/// With no horizon option the matrix is tool selection's: one horizon, the world's
+/// horizon where the tool is not held (exp3's 10), for every state and row; its values
+/// are `tests/reference/exp3_bruteforce.py --horizon 10`'s.
+#[test]
+fn the_default_matrix_is_the_selections() {
+    let v = json(&["empowerment", "matrix", "exp3", "--json"]);
+    assert_eq!(
+        (
+            v["horizon_unequipped"].as_u64(),
+            v["horizon_equipped"].as_u64()
+        ),
+        (Some(10), Some(10))
+    );
+    assert_eq!(v["tools"], serde_json::json!(["key", "axe"]));
+    let m = v["matrix"].as_array().unwrap();
+    assert!((m[0][1].as_f64().unwrap() - 2.042360751798079).abs() < 1e-9);
+    assert!((m[1][1].as_f64().unwrap() - 2.0061106993148887).abs() < 1e-9);
+    // Rows that switch to 5 where their tool is held rank the boulder's column the
+    // other way (worlds/EXPECTED.md); auto never uses them.
+    assert_eq!(v["selection"]["boulder"], "key");
+    let mixed = json(&[
+        "empowerment",
+        "matrix",
+        "exp3",
+        "--horizon-equipped",
+        "5",
+        "--json",
+    ]);
+    assert_eq!(mixed["selection"]["boulder"], "axe");
+    let out = fulcrum(&["empowerment", "matrix", "exp3"]);
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("averaged), h = 10, "), "{text}");
+}
+
 #[test]
 fn matrix_selects_none_for_a_zero_column() {
     // In exp1-tree the tin opener and key act on nothing: a column of the key's own
@@ -88,9 +122,20 @@ fn matrix_selects_none_for_a_zero_column() {
 
 #[test]
 fn matrix_human_output_marks_the_selection() {
-    let out = fulcrum(&["empowerment", "matrix", "exp2", "--joint", "boulder+door"]);
+    let out = fulcrum(&[
+        "empowerment",
+        "matrix",
+        "exp2",
+        "--horizon-unequipped",
+        "5",
+        "--horizon-equipped",
+        "6",
+        "--joint",
+        "boulder+door",
+    ]);
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("h = 5 unequipped / 6 equipped"), "{text}");
     assert!(text.contains("0.209375*"), "{text}");
     assert!(
         text.contains("selection: boulder -> wand, door -> wand, boulder+door -> wand"),

@@ -201,15 +201,15 @@ fn a_client_started_first_waits_for_the_service() {
     assert!(matches!(err, ClientError::NoService { .. }), "{err:?}");
 }
 
-// `serve --tool auto` says which column the selection came from: the world's own
-// horizons (exp1-tree's 8 / 3, worlds/EXPECTED.md: the axe's 96/2052 over the tree, every
-// other tool 0), even where the served table's horizons are others (here 2 / 1, at which
-// the axe's entry is not 96/2052).
+// `serve --tool auto` says which column the selection came from: the selection's one
+// horizon, the world's horizon where the tool is not held (exp3's 10; the column
+// `empowerment/tests/reference/exp3_bruteforce.py --horizon 10` prints, worlds/EXPECTED.md),
+// even where the served table's horizons are others (here 2 / 1).
 #[test]
 fn serve_says_the_selection_column_at_the_worlds_horizons() {
     let ns = namespace("column");
     let mut child = fulcrum()
-        .args(["serve", "exp1-tree", "--namespace", &ns, "--tool", "auto"])
+        .args(["serve", "exp3", "--namespace", &ns, "--tool", "auto"])
         .args(["--horizon-unequipped", "2", "--horizon-equipped", "1"])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
@@ -223,8 +223,8 @@ fn serve_says_the_selection_column_at_the_worlds_horizons() {
     let _ = child.kill();
     let _ = child.wait();
     let want = format!(
-        "tool selection for tree: axe (axe {:.6}, pickaxe 0.000000, tin_opener 0.000000, key 0.000000)",
-        96.0 / 2052.0
+        "tool selection for door+boulder: key (key {:.6}, axe {:.6})",
+        2.4749743255786685, 2.155702806873758
     );
     assert_eq!(line.as_deref(), Some(want.as_str()));
 }

@@ -7,6 +7,9 @@ reachable projections (the same recursion as fulcrum's engine, written independe
 with Python sets instead of bitsets).
 
     python3 exp3_bruteforce.py             # docs/world.md: 52051 states, 14849 normal
+    python3 exp3_bruteforce.py --horizon 10
+        # the matrix at one horizon for every state and row: tool selection's matrix
+        # (the world's horizon where the tool is not held, 10 for exp3)
     python3 exp3_bruteforce.py --walk-onto-boulder
         # reproduces the numbers first published in an earlier worlds/EXPECTED.md
         # (35174 / 10048 states): there, an agent moving into an open doorway enters it
@@ -25,6 +28,7 @@ MAP = ["#############",
        "#############"]
 TOOLS = {"k": 0, "a": 1}  # key = tool 0, axe = tool 1
 BUG = "--walk-onto-boulder" in sys.argv
+ONE_H = int(sys.argv[sys.argv.index("--horizon") + 1]) if "--horizon" in sys.argv else None
 CLOSED, OPEN, DESTROYED = 0, 1, 2
 DIRS = [(0, -1), (1, 0), (0, 1), (-1, 0)]  # N E S W
 tool_at = {(x, y): TOOLS[c] for y, r in enumerate(MAP) for x, c in enumerate(r) if c in TOOLS}
@@ -108,4 +112,5 @@ def matrix_entry(tool, proj, hu=10, he=5):
 
 columns = [("door", lambda s: s[4]), ("boulder", lambda s: s[5]), ("door+boulder", lambda s: (s[4], s[5]))]
 for tool, name in [(0, "key"), (1, "axe")]:
-    print(name, " ".join(f"{c}={matrix_entry(tool, p)!r}" for c, p in columns))
+    hz = (ONE_H, ONE_H) if ONE_H else (10, 5)
+    print(name, " ".join(f"{c}={matrix_entry(tool, p, *hz)!r}" for c, p in columns))

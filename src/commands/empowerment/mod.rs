@@ -13,7 +13,7 @@ use serde_json::json;
 use crate::cli::{Channel, EmpCmd, LandscapeArgs, MatrixArgs, QueryArgs, TraceArgs};
 use crate::commands::bad;
 use fulcrum_empowerment::request::{
-    engine, holding_mask, matrix_columns, object_set, objects_or_default, tool_sel,
+    engine, holding_mask, matrix_columns, matrix_horizons, object_set, objects_or_default, tool_sel,
 };
 use fulcrum_run::BadRequest;
 use fulcrum_world::load_world as world;
@@ -40,13 +40,11 @@ fn fmt_bits(v: f64) -> String {
 
 fn matrix(a: &MatrixArgs) -> Result<()> {
     let w = world(&a.world)?;
-    let (hu, he) = match a.horizon {
-        Some(h) => (h, h),
-        None => (
-            a.horizon_unequipped
-                .unwrap_or(w.empowerment.horizon_unequipped),
-            a.horizon_equipped.unwrap_or(w.empowerment.horizon_equipped),
-        ),
+    let (hu, he) = matrix_horizons(&w, a.horizon, a.horizon_unequipped, a.horizon_equipped);
+    let horizons = if hu == he {
+        format!("h = {hu}")
+    } else {
+        format!("h = {hu} unequipped / {he} equipped")
     };
     let columns = matrix_columns(&w, a.objects.as_deref(), &a.joint)?;
     let t0 = Instant::now();
@@ -55,10 +53,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
     let elapsed_ms = t0.elapsed().as_secs_f64() * 1e3;
     if let Some(path) = &a.png {
         let pic = fulcrum_plot::MatrixPicture {
-            title: format!(
-                "{}: tool-object empowerment, h = {hu} unequipped / {he} equipped",
-                w.name
-            ),
+            title: format!("{}: tool-object empowerment, {horizons}", w.name),
             rows: m.tools.clone(),
             columns: m.columns.clone(),
             values: m.values.clone(),
@@ -97,7 +92,7 @@ fn matrix(a: &MatrixArgs) -> Result<()> {
         return Ok(());
     }
     println!(
-        "{}: {} states ({} normal-mode averaged), h = {hu} unequipped / {he} equipped, {elapsed_ms:.1} ms",
+        "{}: {} states ({} normal-mode averaged), {horizons}, {elapsed_ms:.1} ms",
         w.name,
         e.space.len(),
         m.normal_states
