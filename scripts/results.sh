@@ -98,8 +98,9 @@ fi
 # Worlds nobody wrote: 20 generated worlds x 3 seeds within 999,424 env steps; the
 # baseline, train's default form, the additive bonus (the default before it), the
 # paper's setting (train --paper) and horizon-potential at beta 0.05 (its default before
-# 0.4 / max Phi); then 20 worlds generated after that change, and the default on exp2
-# and exp3, where its beta differs from 0.05.
+# 0.4 / max Phi); then 20 worlds generated after that change, 20 generated after the
+# change to tool selection, the worlds of their misses with 20 seeds, and the default on
+# exp2 and exp3, where its beta differs from 0.05.
 if [[ "$mode" != pictures || -d experiments/robust ]]; then
   quiet_if_pictures $f experiment --worlds gen:20 --seeds 3 --steps 999424 \
     --arms baseline,horizon-potential,additive,paper --intrinsic horizon-potential \
@@ -110,6 +111,24 @@ if [[ "$mode" != pictures || -d experiments/robust ]]; then
     --arms baseline,horizon-potential --out experiments/robust-fresh
   cp experiments/robust-fresh/summary.md "$out/robust-fresh-summary.md"
   cp experiments/robust-fresh/summary.json "$out/robust-fresh-summary.json"
+  quiet_if_pictures $f experiment --worlds gen:20:seed=2001 --seeds 3 --steps 999424 \
+    --arms baseline,horizon-potential --out experiments/robust-third
+  cp experiments/robust-third/summary.md "$out/robust-third-summary.md"
+  cp experiments/robust-third/summary.json "$out/robust-third-summary.json"
+  # The misses, with 20 seeds (and s2017 with the key the earlier selection gave it).
+  for w in s1006 s1012; do
+    quiet_if_pictures $f experiment "experiments/robust-fresh/worlds/gen-12x8-t3-o2-$w.toml" \
+      --seeds 20 --steps 999424 --arms baseline,horizon-potential --out "experiments/misses/$w"
+  done
+  for w in s2017 s2020; do
+    quiet_if_pictures $f experiment "experiments/robust-third/worlds/gen-12x8-t3-o2-$w.toml" \
+      --seeds 20 --steps 999424 --arms baseline,horizon-potential --out "experiments/misses/$w"
+  done
+  sed 's/tool = "auto"/tool = "key"/' experiments/robust-third/worlds/gen-12x8-t3-o2-s2017.toml \
+    > experiments/misses/gen-12x8-t3-o2-s2017-key.toml
+  quiet_if_pictures $f experiment experiments/misses/gen-12x8-t3-o2-s2017-key.toml \
+    --seeds 20 --steps 999424 --arms baseline,horizon-potential --out experiments/misses/s2017-key
+  python3 scripts/misses_table.py --from-experiments experiments/misses/{s1006,s1012,s2017,s2017-key,s2020}
   for world in exp2 exp3; do
     quiet_if_pictures $f experiment "$world" --seeds 10 --steps 2998272 \
       --arms baseline,horizon-potential --out "experiments/default-beta/$world"

@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
-"""The tables of RESULTS.md ("Worlds nobody wrote"): reads the summaries of the two
-robustness experiments committed as docs/results/robust-summary.json and
-docs/results/robust-fresh-summary.json (written by `fulcrum experiment --worlds`, every
-(world, seed) pair's steps to 0.9 in `per_pair`) and prints, per arm, the pairs solved,
+"""The tables of RESULTS.md ("Worlds nobody wrote"): reads the summaries of the three
+robustness experiments committed as docs/results/robust-summary.json,
+docs/results/robust-fresh-summary.json and docs/results/robust-third-summary.json
+(written by `fulcrum experiment --worlds`, every (world, seed) pair's steps to 0.9 in
+`per_pair`) and prints, per arm, the pairs solved,
 their share with its Wilson 95% interval, the IQM of steps to 0.9 with its bootstrap
 interval (as the experiment computed it), the median, the log-rank p against the
 baseline with Holm's adjustment over the arms, the pairs solved by only one of the two,
@@ -20,7 +21,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from noisy_tables import log_rank, pt  # noqa: E402
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-SETS = ["robust", "robust-fresh"]
+SETS = ["robust", "robust-fresh", "robust-third"]
 
 
 def st(x):
