@@ -57,6 +57,10 @@ pub struct RunConfig {
     /// How the horizon follows the inventory (`switch` or `fixed`).
     #[serde(default)]
     pub horizon_mode: HorizonMode,
+    /// What of a destroy task's objects the potential forms count (a configuration
+    /// written before the field reads as `full`, the way those runs were trained).
+    #[serde(default)]
+    pub potential_objects: PotentialObjects,
     /// The dynamics the service's table is computed on (a configuration written before
     /// stochastic worlds reads as `exact`, which is what it meant).
     #[serde(default)]
@@ -204,6 +208,45 @@ impl FromStr for HorizonMode {
     }
 }
 
+/// What of a destroy task's objects the potential forms (`potential`,
+/// `horizon-potential`) count. E itself, and every other form, counts the objects' full
+/// state (a boulder's cell too), as the paper does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum PotentialObjects {
+    /// The objects' full state, as E (a configuration written before the field reads so,
+    /// the way those runs were trained).
+    #[default]
+    Full,
+    /// What the task is about: a destroy task's objects by their conditions only (a
+    /// boulder intact or destroyed, not its cell); the full state for any other task.
+    /// The default of a new run.
+    Task,
+}
+
+impl PotentialObjects {
+    /// The name `--potential-objects` takes and `config.toml` writes.
+    pub fn name(self) -> &'static str {
+        match self {
+            PotentialObjects::Full => "full",
+            PotentialObjects::Task => "task",
+        }
+    }
+}
+
+impl FromStr for PotentialObjects {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "full" => Ok(PotentialObjects::Full),
+            "task" => Ok(PotentialObjects::Task),
+            other => Err(format!(
+                "unknown potential objects '{other}' (task: a destroy task's objects by their conditions; full: their full state)"
+            )),
+        }
+    }
+}
+
 /// The dynamics the empowerment table is computed on. In a deterministic world both
 /// models are the same table.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -312,6 +355,12 @@ impl RunConfig {
             return Intrinsic::None;
         }
         self.intrinsic
+    }
+
+    /// Whether the service counts a destroy task's objects by their conditions: a
+    /// potential form with `potential_objects = "task"` ([`PotentialObjects::Task`]).
+    pub fn task_conditions(&self) -> bool {
+        self.form().is_potential() && self.potential_objects == PotentialObjects::Task
     }
 
     /// Whether a checkpoint's metadata fits this configuration: the action space (masked
@@ -549,6 +598,7 @@ mod tests {
             empowerment: false,
             intrinsic: Intrinsic::None,
             horizon_mode: HorizonMode::Switch,
+            potential_objects: PotentialObjects::Task,
             empowerment_model: EmpowermentModel::Exact,
             empowerment_from: None,
             tool: ChannelTool::Auto,
@@ -643,6 +693,26 @@ mod tests {
         let back: RunConfig = toml::from_str(&old).unwrap();
         assert_eq!(back.intrinsic, Intrinsic::Additive);
         assert_eq!(Intrinsic::default(), Intrinsic::HorizonPotential);
+    }
+
+    #[test]
+    fn a_config_without_potential_objects_reads_as_the_full_state() {
+        // Runs made before the field counted a destroy task's objects in full; a new
+        // run writes `task`, and only the potential forms read it.
+        let mut c = cfg();
+        c.empowerment = true;
+        c.intrinsic = Intrinsic::HorizonPotential;
+        let text = c.to_toml();
+        assert!(text.contains("potential_objects = \"task\"\n"), "{text}");
+        assert!(c.task_conditions());
+        let old = text.replace("potential_objects = \"task\"\n", "");
+        let back: RunConfig = toml::from_str(&old).unwrap();
+        assert_eq!(back.potential_objects, PotentialObjects::Full);
+        assert!(!back.task_conditions());
+        c.intrinsic = Intrinsic::Additive;
+        assert!(!c.task_conditions(), "E itself counts the full state");
+        let e = toml::from_str::<RunConfig>(&text.replace("\"task\"", "\"cells\"")).unwrap_err();
+        assert!(e.to_string().contains("potential_objects"), "{e}");
     }
 
     #[test]

@@ -21,6 +21,9 @@
 //!   closer to being affected raises Phi by one. The service computes Phi for every
 //!   state in the same backward set propagation that gives E (every horizon at once).
 //!   As with `potential`, the terms telescope and the task's optimal policies are kept.
+//!   Both potential forms count a destroy task's boulders by their condition only
+//!   (intact or destroyed, not their cell) unless the run says otherwise
+//!   ([`crate::config::PotentialObjects`]): then Phi(s) = H + 1 - d(s) for a boulder too.
 //! * **first-visit**: b_t = E(s_{t+1}) the first time in an episode that E > 0 is
 //!   reached with the inventory s_{t+1} holds, 0 otherwise. Inventories only grow
 //!   within an episode (tools are picked up, never dropped), so one flag per world says

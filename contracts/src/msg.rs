@@ -89,6 +89,9 @@ pub mod item {
 
 /// `objects` mask bit meaning the pseudo-object `agent`.
 pub const AGENT_BIT: u32 = 1 << 31;
+/// `objects` mask bit meaning the objects by their conditions only (a boulder intact or
+/// destroyed, whatever its cell), with the objects' own bits.
+pub const CONDITIONS_BIT: u32 = 1 << 30;
 /// `tool` value meaning the full action set.
 pub const TOOL_ALL: i32 = -1;
 
@@ -107,7 +110,8 @@ pub struct EmpRequest {
     pub tool: i32,
     /// QUERY: horizon.
     pub horizon: u32,
-    /// QUERY: bit i = object i; [`AGENT_BIT`] = the agent.
+    /// QUERY: bit i = object i; [`AGENT_BIT`] = the agent; with [`CONDITIONS_BIT`], the
+    /// objects by their conditions only.
     pub objects: u32,
     /// Sequence number chosen by the client, echoed in the response.
     pub seq: u32,

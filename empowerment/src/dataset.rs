@@ -24,6 +24,8 @@
 //! seq_proj[k]         u32        proj_D(s_h) as a dense id
 //! proj_key[p]         (k_D,) u16 what projection p is: the agent's (x, y) when D is the
 //!                                  agent, else the packed slot of each object of D
+//!                                  (a `conditions:` set: a boulder's slot is 0 intact,
+//!                                  1 destroyed)
 //! ```
 //!
 //! With these an estimator can be trained and scored without stepping the world: in a
@@ -264,7 +266,7 @@ pub fn build(e: &Engine<'_>, spec: &Spec, method: Method) -> Result<Dataset, Eng
     let mut keys: FastMap<[u16; 16], u32> = FastMap::default();
     let key_len = match &spec.set {
         ObjectSet::Agent => 2,
-        ObjectSet::Objects(v) => v.len(),
+        set => set.indices().len(),
     };
     let mut proj_key = Vec::new();
     let (mut seq_row, mut seq_actions, mut seq_final_state, mut seq_proj) =
@@ -276,7 +278,7 @@ pub fn build(e: &Engine<'_>, spec: &Spec, method: Method) -> Result<Dataset, Eng
             let p = *keys.entry(key).or_insert_with(|| {
                 match &spec.set {
                     ObjectSet::Agent => proj_key.extend_from_slice(&key[..2]),
-                    ObjectSet::Objects(v) => proj_key.extend(v.iter().map(|&i| key[i])),
+                    set => proj_key.extend(set.indices().iter().map(|&i| key[i])),
                 }
                 n
             });
@@ -318,7 +320,11 @@ impl Dataset {
         let (gh, gw) = self.grid;
         let objects: Vec<String> = match &spec.set {
             ObjectSet::Agent => vec!["agent".into()],
-            ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+            set => set
+                .indices()
+                .iter()
+                .map(|&i| w.objects[i].name.clone())
+                .collect(),
         };
         let actions: Vec<String> = (0..w.num_actions() as u8)
             .map(|a| w.action_name(a))

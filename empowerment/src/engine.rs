@@ -65,15 +65,18 @@ pub enum Method {
     Enumerate,
 }
 
-/// The name of an object set: `tree`, `boulder+door`, `agent`.
+/// The name of an object set: `tree`, `boulder+door`, `agent`, `conditions:boulder`.
 pub fn set_name(world: &World, set: &ObjectSet) -> String {
-    match set {
-        ObjectSet::Agent => "agent".to_string(),
-        ObjectSet::Objects(v) => v
-            .iter()
+    let names = |v: &[usize]| {
+        v.iter()
             .map(|&i| world.objects[i].name.as_str())
             .collect::<Vec<_>>()
-            .join("+"),
+            .join("+")
+    };
+    match set {
+        ObjectSet::Agent => "agent".to_string(),
+        ObjectSet::Objects(v) => names(v),
+        ObjectSet::Conditions { objects, .. } => format!("conditions:{}", names(objects)),
     }
 }
 

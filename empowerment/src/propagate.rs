@@ -18,7 +18,7 @@
 //! `|S| * W` words.
 
 use fulcrum_world::hash::FastMap;
-use fulcrum_world::{ObjectSet, State};
+use fulcrum_world::{ObjectSet, State, BOULDER_DESTROYED};
 use rayon::prelude::*;
 
 use crate::error::EngineError;
@@ -34,7 +34,8 @@ pub struct Projection {
     pub size: usize,
 }
 
-/// The key proj_D(s): the agent's cell, or the slots of D's objects (others zeroed).
+/// The key proj_D(s): the agent's cell, or the slots of D's objects (others zeroed);
+/// for a set of conditions a boulder's slot is 0 (intact, at any cell) or 1 (destroyed).
 #[inline]
 pub fn project_key(set: &ObjectSet, s: &State) -> [u16; 16] {
     let mut k = [0u16; 16];
@@ -46,6 +47,16 @@ pub fn project_key(set: &ObjectSet, s: &State) -> [u16; 16] {
         ObjectSet::Objects(list) => {
             for &i in list {
                 k[i] = s.objects[i];
+            }
+        }
+        ObjectSet::Conditions { objects, boulders } => {
+            for &i in objects {
+                let v = s.objects[i];
+                k[i] = if boulders >> i & 1 == 1 {
+                    (v == BOULDER_DESTROYED) as u16
+                } else {
+                    v
+                };
             }
         }
     }

@@ -3,7 +3,7 @@
 //! not understood and what would be. The command line and the Python package read
 //! their arguments here, so both say the same sentence.
 
-use fulcrum_world::{ObjectSet, ToolChoice, World};
+use fulcrum_world::{ObjectKind, ObjectSet, Task, ToolChoice, World};
 
 use crate::auto::AutoHorizons;
 use crate::engine::{Engine, Matrix, Method, ToolSel};
@@ -21,10 +21,19 @@ pub fn engine(world: &World) -> Result<Engine<'_>> {
     Engine::new(world, Limits::default())
 }
 
-/// Parse an object set: `agent`, or names joined by `,` or `+`.
+/// Parse an object set: `agent`, or names joined by `,` or `+`, or `conditions:` and
+/// names (the objects by their conditions only: a boulder intact or destroyed).
 pub fn object_set(world: &World, text: &str) -> Result<ObjectSet> {
     if text == "agent" {
         return Ok(ObjectSet::Agent);
+    }
+    if let Some(rest) = text.strip_prefix("conditions:") {
+        if rest.trim() == "agent" {
+            return bad(format!(
+                "'{text}': the agent has no condition; write conditions: and object names"
+            ));
+        }
+        return Ok(object_set(world, rest)?.conditions(world));
     }
     let mut v = Vec::new();
     for name in text.split([',', '+']).map(str::trim) {
@@ -66,6 +75,31 @@ pub fn objects_or_default(world: &World, text: Option<&str>) -> Result<ObjectSet
             )),
         },
     }
+}
+
+/// The object set a potential form counts: the one asked for, or with `task_conditions`
+/// and none asked for, the world's own objects by their conditions only when its task
+/// is to destroy them and one of them is a boulder (a destroy task asks for a change of
+/// condition, and a boulder's cell would otherwise make most of the potential:
+/// `docs/world.md`, "What the potential counts"; the other kinds have no cell, so their
+/// set is left as it is); otherwise [`objects_or_default`].
+pub fn potential_objects(
+    world: &World,
+    text: Option<&str>,
+    task_conditions: bool,
+) -> Result<ObjectSet> {
+    let set = objects_or_default(world, text)?;
+    let boulder = set
+        .indices()
+        .iter()
+        .any(|&i| world.objects[i].kind == ObjectKind::Boulder);
+    Ok(
+        if text.is_none() && task_conditions && boulder && matches!(world.task, Task::Destroy(_)) {
+            set.conditions(world)
+        } else {
+            set
+        },
+    )
 }
 
 /// Parse a tool name (`all`, `auto`, a name, kind or letter); `None`: the world's

@@ -28,6 +28,7 @@ fn tables(horizon_sum: bool) -> FamilyTables {
             horizon_unequipped: HU,
             horizon_equipped: HE,
             horizon_sum,
+            task_conditions: false,
             cache_bytes: 1 << 20,
             keep: 2,
         },
@@ -97,6 +98,7 @@ fn the_cache_drops_the_oldest_layouts_and_keeps_the_first() {
             horizon_unequipped: HU,
             horizon_equipped: HE,
             horizon_sum: true,
+            task_conditions: false,
             // Room for one layout beyond the kept one, at most (a tree's table is
             // ~46 KB: 1,990 values and a direct index of 9,600 keys; a boulder's
             // ~1.2 MB), so every layout made evicts the one before.
@@ -118,4 +120,54 @@ fn the_cache_drops_the_oldest_layouts_and_keeps_the_first() {
     assert_eq!(t.lookup(1, &start(1)), first[1]);
     assert_eq!(t.stats.made, 21);
     assert!(t.stats.dropped > dropped);
+}
+
+/// A run of a potential form counts a layout's boulder by its condition
+/// (`task_conditions`): the family's table is the engine's over `conditions:boulder` on
+/// the layout written out, Phi = max(0, H + 1 - d) a whole number of bits (the values
+/// themselves are checked against a search in `conditions.rs`).
+#[test]
+fn a_potential_runs_tables_count_a_boulder_by_its_condition() {
+    let family = load_family("toolbox").unwrap();
+    let mut t = FamilyTables::new(
+        family.clone(),
+        FamilyConfig {
+            tool: None,
+            horizon_unequipped: HU,
+            horizon_equipped: HE,
+            horizon_sum: true,
+            task_conditions: true,
+            cache_bytes: 1 << 30,
+            keep: 0,
+        },
+    )
+    .unwrap();
+    let mut boulders = 0;
+    for seed in 0..200u64 {
+        let w = parse_world(&family.layout_text(seed).unwrap(), "layout.toml").unwrap();
+        if w.objects[0].kind != fulcrum_world::ObjectKind::Boulder {
+            continue;
+        }
+        let engine = Engine::new(&w, Limits::default()).unwrap();
+        let full = fulcrum_world::ObjectSet::Objects(vec![0]);
+        let cond = full.conditions(&w);
+        let (tool, _) =
+            fulcrum_empowerment::request::tool_sel_with_column(&w, &engine, None, &cond).unwrap();
+        let phi = engine.lookup_values(tool, &cond, HU, HE, true).unwrap();
+        let full_phi = engine.lookup_values(tool, &full, HU, HE, true).unwrap();
+        assert!(
+            full_phi.iter().copied().fold(0.0, f32::max) > HU as f32,
+            "layout {seed}: the boulder's cells make Phi larger"
+        );
+        for (id, s) in engine.space.states().iter().enumerate() {
+            let v = t.lookup(seed, s).unwrap();
+            assert_eq!(v, phi[id], "layout {seed}, {s:?}");
+            assert!(v == v.round() && v <= HU as f32, "layout {seed}: Phi {v}");
+        }
+        boulders += 1;
+        if boulders == 5 {
+            break;
+        }
+    }
+    assert_eq!(boulders, 5);
 }

@@ -69,6 +69,7 @@ mod tests {
             empowerment: true,
             intrinsic: Intrinsic::Additive,
             horizon_mode: HorizonMode::Switch,
+            potential_objects: fulcrum_contracts::config::PotentialObjects::Task,
             empowerment_model: fulcrum_contracts::config::EmpowermentModel::Exact,
             empowerment_from: None,
             tool: ChannelTool::Auto,

@@ -69,7 +69,11 @@ class EmpowermentReward(gym.vector.VectorWrapper):
     ``tool`` (a tool
     name, ``"all"`` or ``"auto"``: the matrix's selection), ``objects`` (``"tree"``,
     ``"boulder+door"``, a list of names, or ``"agent"``), ``horizons`` (``h`` or
-    ``(h_u, h_e)``), ``gamma`` (the potential forms' discount; use your PPO's).
+    ``(h_u, h_e)``), ``gamma`` (the potential forms' discount; use your PPO's),
+    ``potential_objects`` (``"task"``, the default as in training: the potential forms
+    count a destroy task's objects by their conditions only, a boulder intact or
+    destroyed and not its cell, unless ``objects`` names them; ``"full"``: their full
+    state, as E).
     """
 
     def __init__(
@@ -81,6 +85,7 @@ class EmpowermentReward(gym.vector.VectorWrapper):
         objects: str | Sequence[str] | None = None,
         horizons: int | tuple[int, int] | None = None,
         gamma: float = 0.99,
+        potential_objects: str = "task",
     ):
         super().__init__(env)
         base = env.unwrapped
@@ -97,7 +102,14 @@ class EmpowermentReward(gym.vector.VectorWrapper):
         self._base_info = None
         self._wrapped_info = {}
         self._total, self._intrinsic, self._value = base._core.attach_intrinsic(
-            form, beta, tool, _objects_arg(objects), hu, he, float(gamma)
+            form,
+            beta,
+            tool,
+            _objects_arg(objects),
+            hu,
+            he,
+            float(gamma),
+            potential_objects,
         )
         self.settings = base._core.intrinsic_settings[-1]
         """The form, beta, tool, objects and horizons in force, in words."""

@@ -36,7 +36,11 @@ fn horizon_arg(h: Option<u32>) -> PyResult<Option<u32>> {
 fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
     match set {
         ObjectSet::Agent => vec!["agent".to_string()],
-        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+        set => set
+            .indices()
+            .iter()
+            .map(|&i| w.objects[i].name.clone())
+            .collect(),
     }
 }
 

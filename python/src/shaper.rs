@@ -6,6 +6,9 @@
 //! additive b_t = E(s_{t+1}) (the paper's equation (1)); potential
 //! gamma E(s_{t+1}) - E(s_t); horizon-potential the same with Phi = sum over h of E^h;
 //! first-visit E(s_{t+1}) once per inventory and episode; count 1 / sqrt(N(s_{t+1})).
+//! The potential forms count a destroy task's objects by their conditions only (a
+//! boulder intact or destroyed, not its cell) unless `potential_objects="full"` or the
+//! objects are named, as in training.
 //! E is the exact table of the empowerment service (`request::lookup_table`): E^{h_e}
 //! where the tool is held, E^{h_u} elsewhere. Each environment's state id is followed
 //! through the state space's successor table, so a lookup is one array read (in a
@@ -25,6 +28,7 @@
 
 use std::str::FromStr;
 
+use fulcrum_contracts::config::PotentialObjects;
 use fulcrum_contracts::intrinsic::{bonus, Intrinsic, Shaping};
 use fulcrum_empowerment::service::{FamilyConfig, FamilyTables};
 use fulcrum_empowerment::{request, Engine, EngineError, ToolSel};
@@ -45,9 +49,18 @@ pub(crate) struct Settings<'a> {
     pub horizon_unequipped: Option<u32>,
     pub horizon_equipped: Option<u32>,
     pub gamma: f64,
+    /// `potential_objects`: `"task"` (a destroy task's objects by their conditions, for
+    /// the potential forms) or `"full"`.
+    pub potential_objects: &'a str,
 }
 
 impl Settings<'_> {
+    /// Whether a potential form counts a destroy task's objects by their conditions.
+    fn task_conditions(&self, form: Intrinsic) -> PyResult<bool> {
+        let p = PotentialObjects::from_str(self.potential_objects).map_err(value_error)?;
+        Ok(form.is_potential() && p == PotentialObjects::Task)
+    }
+
     /// Refuses a beta or gamma out of range; the horizons, the defaults where none is
     /// given, refused above [`MAX_HORIZON`].
     fn checked(&self, hu: u32, he: u32) -> PyResult<(u32, u32)> {
@@ -158,7 +171,8 @@ impl Shaper {
         let space_len = engine.space.len();
         let beta;
         let (values, summary) = if form.uses_empowerment() {
-            let set = request::objects_or_default(w, s.objects).py_err()?;
+            let set =
+                request::potential_objects(w, s.objects, s.task_conditions(form)?).py_err()?;
             let (tool, values) = py
                 .detach(|| {
                     request::lookup_table(w, engine, s.tool, &set, hu, he, form.horizon_sum())
@@ -252,6 +266,7 @@ impl Shaper {
             horizon_unequipped: hu,
             horizon_equipped: he,
             horizon_sum: form.horizon_sum(),
+            task_conditions: s.task_conditions(form)?,
             cache_bytes: 256 << 20,
             keep: 0,
         };

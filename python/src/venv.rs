@@ -429,7 +429,7 @@ impl VecCore {
     /// Attach an intrinsic reward (`EmpowermentReward`): after each step its arrays hold
     /// the total reward R + beta * b, the intrinsic part beta * b and the value looked up
     /// (E, Phi, or the visit count). Returns them as `(total, intrinsic, value)`.
-    #[pyo3(signature = (form, beta, tool, objects, horizon_unequipped, horizon_equipped, gamma))]
+    #[pyo3(signature = (form, beta, tool, objects, horizon_unequipped, horizon_equipped, gamma, potential_objects="task"))]
     #[allow(clippy::too_many_arguments)]
     fn attach_intrinsic(
         &mut self,
@@ -441,6 +441,7 @@ impl VecCore {
         horizon_unequipped: Option<u32>,
         horizon_equipped: Option<u32>,
         gamma: f64,
+        potential_objects: &str,
     ) -> PyResult<crate::shaper::Outputs> {
         if self.shapers.len() == MAX_SHAPERS {
             return Err(value_error(format!(
@@ -455,6 +456,7 @@ impl VecCore {
             horizon_unequipped,
             horizon_equipped,
             gamma,
+            potential_objects,
         };
         if let Some(f) = &self.family {
             let layouts = self.layout.bind(py).readonly().as_slice()?.to_vec();

@@ -162,3 +162,55 @@ def test_empowerment_reward_on_a_stochastic_world_pays_the_noisy_channels_e():
             )
             assert got == pytest.approx(list(want), abs=1e-6), h
     assert len({round(v, 6) for v in by_h[8][1]}) >= 2
+
+
+BOULDER_ROOM = '''name = "boulder-room"
+max_steps = 50
+map = """
+#######
+#@.b..#
+#..0..#
+#.....#
+#######
+"""
+
+[tools]
+b = "pickaxe"
+
+[task]
+kind = "destroy"
+objects = ["boulder"]
+
+[empowerment]
+tool = "pickaxe"
+objects = ["boulder"]
+horizon_unequipped = 6
+horizon_equipped = 3
+beta = 0.001
+'''
+
+
+def test_the_potential_counts_a_destroy_tasks_boulder_by_its_condition(tmp_path):
+    # As in training: the boulder intact or destroyed, not its cell. Phi = H + 1 - d(s)
+    # where the pickaxe destroys it in d <= H = 6 steps, so max Phi = 6 (d = 1 facing
+    # it, the pickaxe chosen) and beta = 0.4 / 6.
+    path = tmp_path / "boulder-room.toml"
+    path.write_text(BOULDER_ROOM)
+    env = EmpowermentReward(fulcrum.make_vec(str(path), num_envs=1))
+    assert env.settings.startswith(
+        f"horizon-potential: beta {0.4 / 6!r}, pickaxe -> conditions:boulder, h 6"
+    ), env.settings
+    env.reset()
+    seen = []
+    for a in [1, 1, 2, 0, 3, 3, 2, 1, 1, 1, 0, 0]:
+        _, _, _, _, info = env.step(np.array([a]))
+        seen.append(float(info["empowerment"][0]))
+    assert max(seen) <= 6.0 and all(v == int(v) for v in seen), seen
+    full = EmpowermentReward(
+        fulcrum.make_vec(str(path), num_envs=1), potential_objects="full"
+    )
+    assert "pickaxe -> boulder, h 6" in full.settings, full.settings
+    additive = EmpowermentReward(fulcrum.make_vec(str(path), num_envs=1), form="additive")
+    assert "pickaxe -> boulder, h 6" in additive.settings, additive.settings
+    with pytest.raises(ValueError, match="unknown potential objects 'cells'"):
+        EmpowermentReward(fulcrum.make_vec(str(path), num_envs=1), potential_objects="cells")

@@ -10,7 +10,9 @@
 use std::path::{Path, PathBuf};
 
 use crate::error::{Context, Result};
-use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode, RunConfig};
+use fulcrum_contracts::config::{
+    ChannelTool, EmpowermentModel, HorizonMode, PotentialObjects, RunConfig,
+};
 use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_contracts::ppo_config::PpoConfig;
 use fulcrum_learner::paths::RunPaths;
@@ -21,7 +23,7 @@ use crate::error::{bad, BadRequest};
 use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use crate::settings::{Fixed, Resumable};
-use fulcrum_empowerment::request::objects_or_default;
+use fulcrum_empowerment::request::{objects_or_default, potential_objects};
 use fulcrum_world::family::load_world_or_family;
 use fulcrum_world::Layouts;
 
@@ -292,6 +294,9 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
         empowerment: form.uses_service(),
         intrinsic: form,
         horizon_mode: mode,
+        // A new run counts what its task is about; an old config.toml without the field
+        // reads as `full`, the way it was trained.
+        potential_objects: a.potential_objects.unwrap_or(PotentialObjects::Task),
         empowerment_model: a.empowerment_model.unwrap_or_default(),
         empowerment_from: None,
         tool: a.tool.clone().unwrap_or_default(),
@@ -359,6 +364,7 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
                     &model_world(lw, cfg.empowerment_model),
                     cfg.tool.as_request(),
                     (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+                    cfg.task_conditions(),
                     cfg.horizon_unequipped,
                     cfg.horizon_equipped,
                 )?);
@@ -390,9 +396,10 @@ pub fn estimates_table(w: &World, cfg: &RunConfig, file: &Path) -> Result<Vec<f3
     })?;
     let mw = model_world(w, cfg.empowerment_model);
     let engine = fulcrum_empowerment::Engine::new(&mw, fulcrum_empowerment::Limits::default())?;
-    let set = objects_or_default(
+    let set = potential_objects(
         &mw,
         (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+        cfg.task_conditions(),
     )?;
     let tool = fulcrum_empowerment::request::tool_sel(&mw, &engine, cfg.tool.as_request(), &set)?;
     Ok(fulcrum_empowerment::estimates::lookup_from_estimates(
@@ -417,11 +424,12 @@ fn max_potential(
     w: &World,
     tool: Option<&str>,
     objects: Option<&str>,
+    task_conditions: bool,
     horizon_unequipped: u32,
     horizon_equipped: u32,
 ) -> Result<f64> {
     let engine = fulcrum_empowerment::Engine::new(w, fulcrum_empowerment::Limits::default())?;
-    let set = objects_or_default(w, objects)?;
+    let set = potential_objects(w, objects, task_conditions)?;
     let tool = fulcrum_empowerment::request::tool_sel(w, &engine, tool, &set)?;
     let phi = engine.lookup_values(tool, &set, horizon_unequipped, horizon_equipped, true)?;
     Ok(phi.iter().copied().fold(0.0f32, f32::max) as f64)

@@ -21,7 +21,7 @@ use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::bad;
-use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel};
+use fulcrum_empowerment::request::{engine, potential_objects, tool_sel};
 
 /// Plays `episodes` episodes of the run's policy and draws each as
 /// `out/episode-<k>.png` (and, with `gif`, as the animation `out/episode-<k>.gif`, one
@@ -37,9 +37,13 @@ pub fn record(
 ) -> Result<Vec<(PathBuf, u32)>> {
     let (mut policy, _) = load_policy(&paths.checkpoint(), paths, cfg, w)?;
 
-    // E for every state, by the run's channel.
+    // E for every state, by the run's channel (the objects its service counts).
     let e = engine(w)?;
-    let set = objects_or_default(w, (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()))?;
+    let set = potential_objects(
+        w,
+        (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+        cfg.task_conditions(),
+    )?;
     let tool: ToolSel = tool_sel(w, &e, cfg.tool.as_request(), &set)?;
     let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
     let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;

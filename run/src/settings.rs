@@ -8,7 +8,7 @@
 //! replace the run's.
 
 use clap::builder::{PossibleValuesParser, TypedValueParser};
-use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode};
+use fulcrum_contracts::config::{ChannelTool, EmpowermentModel, HorizonMode, PotentialObjects};
 use fulcrum_contracts::intrinsic::Intrinsic;
 use fulcrum_learner::preset::Preset;
 use fulcrum_world::{Layouts, View};
@@ -61,6 +61,12 @@ pub struct Fixed {
     /// not-held horizon everywhere [default: switch].
     #[arg(long, value_parser = named::<HorizonMode>(&["switch", "fixed"]))]
     pub horizon_mode: Option<HorizonMode>,
+    /// What of a destroy task's objects the potential forms count: task (their
+    /// conditions only: a boulder intact or destroyed, not its cell, so that the shaping
+    /// does not pay for pushing it about) or full (their full state, as E) [default:
+    /// task]. Objects named with --objects are counted as named.
+    #[arg(long, value_parser = named::<PotentialObjects>(&["task", "full"]))]
+    pub potential_objects: Option<PotentialObjects>,
     /// The dynamics E is computed on: exact (the world as it is; in a stochastic world
     /// the channel capacity of its noisy dynamics) or deterministic (the same map with
     /// slip 0 and every rule's p 1: what ignoring the noise gives) [default: exact].
@@ -268,6 +274,7 @@ mod tests {
             intrinsic: Some(Intrinsic::Count),
             paper: true,
             horizon_mode: Some(HorizonMode::Fixed),
+            potential_objects: Some(PotentialObjects::Full),
             empowerment_model: Some(EmpowermentModel::Deterministic),
             empowerment_from: Some("e.csv".into()),
             intrinsic_value_head: true,
@@ -289,7 +296,7 @@ mod tests {
             minibatches: Some(1),
             ppo_preset: Some(Preset::CleanRl),
         };
-        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --empowerment-model --empowerment-from --intrinsic-value-head --gamma-int --no-action-mask --view --layouts --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
+        let want = "--beta --no-empowerment --intrinsic --paper --horizon-mode --potential-objects --empowerment-model --empowerment-from --intrinsic-value-head --gamma-int --no-action-mask --view --layouts --seed --actors --envs-per-actor --steps-per-chunk --hidden --tool --objects --horizon-unequipped --horizon-equipped --lr --epochs --minibatches --ppo-preset";
         assert_eq!(all.given().join(" "), want);
         let two = Fixed {
             view: Some(View::Full),

@@ -12,7 +12,7 @@ use fulcrum_empowerment::{set_name, ToolSel};
 use crate::cli::ServeArgs;
 use crate::commands::bad;
 use fulcrum_contracts::config::EmpowermentModel;
-use fulcrum_empowerment::request::{engine, objects_or_default, tool_sel_with_column};
+use fulcrum_empowerment::request::{engine, potential_objects, tool_sel_with_column};
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_run::child::load_run;
 use fulcrum_run::BadRequest;
@@ -27,6 +27,8 @@ struct Served {
     world: World,
     tool: Option<String>,
     objects: Option<String>,
+    /// A potential form's run counting a destroy task's objects by their conditions.
+    task_conditions: bool,
     horizon_unequipped: Option<u32>,
     horizon_equipped: Option<u32>,
     horizon_sum: bool,
@@ -46,6 +48,7 @@ impl Served {
                 world: w,
                 tool: cfg.tool.as_request().map(str::to_string),
                 objects: (!cfg.objects.is_empty()).then(|| cfg.objects.clone()),
+                task_conditions: cfg.task_conditions(),
                 horizon_unequipped: Some(cfg.horizon_unequipped),
                 horizon_equipped: Some(cfg.horizon_equipped),
                 horizon_sum: cfg.form().horizon_sum(),
@@ -58,6 +61,7 @@ impl Served {
             world: world(spec)?,
             tool: a.tool.clone(),
             objects: a.objects.clone(),
+            task_conditions: false,
             horizon_unequipped: a.horizon_unequipped,
             horizon_equipped: a.horizon_equipped,
             horizon_sum: a.horizon_sum,
@@ -92,7 +96,7 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     // world itself are answered.
     let w = fulcrum_run::plan::model_world(&world_itself, model);
     let w = &*w;
-    let set = objects_or_default(w, a.objects.as_deref())?;
+    let set = potential_objects(w, a.objects.as_deref(), a.task_conditions)?;
     let e = engine(w)?;
     let (tool, matrix) = tool_sel_with_column(w, &e, a.tool.as_deref(), &set)?;
     let hu = a
@@ -212,6 +216,7 @@ fn serve_family(args: &ServeArgs) -> Result<Option<()>> {
             horizon_unequipped: cfg.horizon_unequipped,
             horizon_equipped: cfg.horizon_equipped,
             horizon_sum: cfg.form().horizon_sum(),
+            task_conditions: cfg.task_conditions(),
             cache_bytes: args.cache_mib << 20,
             keep: match layouts {
                 Layouts::First(n) => n.min(KEEP_LAYOUTS),
@@ -240,6 +245,7 @@ fn serve_family(args: &ServeArgs) -> Result<Option<()>> {
             horizon_unequipped: args.horizon_unequipped.unwrap_or(family.horizon_unequipped),
             horizon_equipped: args.horizon_equipped.unwrap_or(family.horizon_equipped),
             horizon_sum: args.horizon_sum,
+            task_conditions: false,
             cache_bytes: args.cache_mib << 20,
             keep: 0,
         };

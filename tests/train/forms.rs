@@ -174,3 +174,72 @@ fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
     assert!(cfg.contains("horizon_equipped = 5\n"), "{cfg}");
     assert!(cfg.contains("horizon_mode = \"fixed\""), "{cfg}");
 }
+
+/// A room whose task is to destroy a boulder the agent can also push about.
+const BOULDER_ROOM: &str = r#"name = "boulder-room"
+max_steps = 50
+map = """
+#######
+#@.b..#
+#..0..#
+#.....#
+#######
+"""
+
+[tools]
+b = "pickaxe"
+
+[task]
+kind = "destroy"
+objects = ["boulder"]
+
+[empowerment]
+tool = "auto"
+objects = ["boulder"]
+horizon_unequipped = 6
+horizon_equipped = 3
+beta = 0.001
+"#;
+
+#[test]
+fn the_potential_counts_a_destroy_tasks_boulder_by_its_condition() {
+    let root = TempDir::fresh("conditions");
+    std::fs::create_dir_all(&root).unwrap();
+    let world = root.join("boulder-room.toml");
+    std::fs::write(&world, BOULDER_ROOM).unwrap();
+    let w = world.to_str().unwrap();
+    let run = |tag: &str, extra: &[&str]| {
+        let dir = root.join(tag);
+        let d = dir.to_str().unwrap();
+        let c = train(&[&[w, "--steps", "256", "--out", d][..], extra, SMALL].concat());
+        let (status, err, _) = finish(c, Duration::from_secs(120));
+        assert!(status.success(), "{tag}: {err}");
+        let cfg = std::fs::read_to_string(dir.join("config.toml")).unwrap();
+        (cfg, err)
+    };
+    // The default: the boulder by its condition. Phi = max(0, H + 1 - d(s)) with H = 6,
+    // and d = 1 in the state that faces it with the pickaxe chosen, so max Phi = 6 and
+    // beta = 0.4 / 6.
+    let (cfg, err) = run("default", &[]);
+    assert!(cfg.contains("potential_objects = \"task\"\n"), "{cfg}");
+    assert!(cfg.contains(&format!("beta = {}\n", 0.4 / 6.0)), "{cfg}");
+    assert!(
+        err.contains("tool selection for conditions:boulder: pickaxe"),
+        "{err}"
+    );
+    // The full state: the boulder's cells count, Phi exceeds H somewhere, beta is smaller.
+    let (cfg, err) = run("full", &["--potential-objects", "full"]);
+    assert!(cfg.contains("potential_objects = \"full\"\n"), "{cfg}");
+    assert!(err.contains("tool selection for boulder: pickaxe"), "{err}");
+    let beta: f64 = cfg
+        .lines()
+        .find_map(|l| l.strip_prefix("beta = "))
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(beta < 0.4 / 6.0, "{beta}");
+    // The additive bonus is E itself: the full state.
+    let (_, err) = run("additive", &["--intrinsic", "additive"]);
+    assert!(err.contains("tool selection for boulder: pickaxe"), "{err}");
+    let _ = std::fs::remove_dir_all(&root);
+}

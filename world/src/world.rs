@@ -238,6 +238,36 @@ pub enum ObjectSet {
     Agent,
     /// These objects jointly (indices, sorted, distinct, non-empty).
     Objects(Vec<usize>),
+    /// These objects jointly by their conditions only (`conditions:boulder` on the
+    /// command line): a boulder counts as intact or destroyed whatever its cell; the
+    /// other kinds have no cell and count as in [`ObjectSet::Objects`]. `boulders` has
+    /// bit i set where object i is a boulder ([`World::conditions_of`] makes it).
+    Conditions {
+        /// Indices, sorted, distinct, non-empty.
+        objects: Vec<usize>,
+        /// Bit i: object i is a boulder.
+        boulders: u16,
+    },
+}
+
+impl ObjectSet {
+    /// The objects' indices (none for the agent).
+    pub fn indices(&self) -> &[usize] {
+        match self {
+            ObjectSet::Agent => &[],
+            ObjectSet::Objects(v) | ObjectSet::Conditions { objects: v, .. } => v,
+        }
+    }
+
+    /// The same objects by their conditions only (the agent stays the agent).
+    pub fn conditions(&self, world: &World) -> ObjectSet {
+        match self {
+            ObjectSet::Agent => ObjectSet::Agent,
+            ObjectSet::Objects(v) | ObjectSet::Conditions { objects: v, .. } => {
+                world.conditions_of(v.clone())
+            }
+        }
+    }
 }
 
 /// Defaults for the intrinsic reward, from `[empowerment]`.
@@ -416,6 +446,18 @@ impl World {
     /// The boulders' object indices.
     pub fn boulder_indices(&self) -> impl Iterator<Item = usize> + '_ {
         self.boulders.iter().map(|&b| b as usize)
+    }
+
+    /// The set of objects `v` (sorted, distinct indices) by their conditions only.
+    pub fn conditions_of(&self, v: Vec<usize>) -> ObjectSet {
+        let boulders = v
+            .iter()
+            .filter(|&&i| self.objects[i].kind == ObjectKind::Boulder)
+            .fold(0u16, |m, &i| m | 1 << i);
+        ObjectSet::Conditions {
+            objects: v,
+            boulders,
+        }
     }
 
     /// The abstract condition of object `i` in `s`.

@@ -1,17 +1,20 @@
 //! How requests and the DESCRIBE answer name tools and object sets: a tool is its
 //! index or [`TOOL_ALL`], an object set is a bit mask ([`AGENT_BIT`] for the agent).
 
-use fulcrum_contracts::msg::{self, Describe, AGENT_BIT, TOOL_ALL};
+use fulcrum_contracts::msg::{self, Describe, AGENT_BIT, CONDITIONS_BIT, TOOL_ALL};
 use fulcrum_world::{ObjectSet, World};
 
 use super::config::ServeConfig;
 use crate::engine::{Engine, ToolSel};
 
-/// Object mask of a set (bit per object; [`AGENT_BIT`] for the agent).
+/// Object mask of a set (bit per object; [`AGENT_BIT`] for the agent, and
+/// [`CONDITIONS_BIT`] with the objects' bits for their conditions).
 pub fn object_mask(set: &ObjectSet) -> u32 {
+    let bits = |v: &[usize]| v.iter().fold(0, |m, &i| m | 1 << i);
     match set {
         ObjectSet::Agent => AGENT_BIT,
-        ObjectSet::Objects(v) => v.iter().fold(0, |m, &i| m | 1 << i),
+        ObjectSet::Objects(v) => bits(v),
+        ObjectSet::Conditions { objects, .. } => bits(objects) | CONDITIONS_BIT,
     }
 }
 
@@ -20,14 +23,19 @@ pub fn mask_set(world: &World, mask: u32) -> Option<ObjectSet> {
     if mask == AGENT_BIT {
         return Some(ObjectSet::Agent);
     }
+    let conditions = mask & CONDITIONS_BIT != 0;
+    let mask = mask & !CONDITIONS_BIT;
     if mask == 0 || mask & AGENT_BIT != 0 || mask >> world.objects.len() != 0 {
         return None;
     }
-    Some(ObjectSet::Objects(
-        (0..world.objects.len())
-            .filter(|&i| mask >> i & 1 == 1)
-            .collect(),
-    ))
+    let v: Vec<usize> = (0..world.objects.len())
+        .filter(|&i| mask >> i & 1 == 1)
+        .collect();
+    Some(if conditions {
+        world.conditions_of(v)
+    } else {
+        ObjectSet::Objects(v)
+    })
 }
 
 /// A tool selection's code in requests and in [`Describe`].

@@ -28,7 +28,7 @@ use fulcrum_world::State;
 
 use super::answer::Answer;
 use crate::limits::Limits;
-use crate::request::{lookup_table, objects_or_default};
+use crate::request::{lookup_table, potential_objects};
 use crate::space::StateIndex;
 use crate::Engine;
 
@@ -43,6 +43,9 @@ pub struct FamilyConfig {
     pub horizon_equipped: u32,
     /// LOOKUP answers Phi instead of E (see the module docs).
     pub horizon_sum: bool,
+    /// A layout whose task is to destroy its objects counts them by their conditions
+    /// only ([`potential_objects`]: a potential form's run).
+    pub task_conditions: bool,
     /// Bytes the tables of layouts beyond the kept ones may hold.
     pub cache_bytes: usize,
     /// Layouts whose tables are made first and never dropped: the seeds `0..keep`.
@@ -136,7 +139,8 @@ impl FamilyTables {
         let t0 = Instant::now();
         let w = self.family.layout(seed).map_err(|e| e.to_string())?;
         let engine = Engine::new(&w, Limits::default()).map_err(|e| e.to_string())?;
-        let set = objects_or_default(&w, None).map_err(|e| e.to_string())?;
+        let set =
+            potential_objects(&w, None, self.cfg.task_conditions).map_err(|e| e.to_string())?;
         let (_, values) = lookup_table(
             &w,
             &engine,

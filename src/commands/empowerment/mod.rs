@@ -276,7 +276,11 @@ fn ansi_colour(v: f64, max: f64) -> u8 {
 fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
     match set {
         ObjectSet::Agent => vec!["agent".to_string()],
-        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+        set => set
+            .indices()
+            .iter()
+            .map(|&i| w.objects[i].name.clone())
+            .collect(),
     }
 }
 
@@ -325,13 +329,12 @@ fn trace(a: &TraceArgs) -> Result<()> {
     let tool_name = r.tool.name(&w);
     let set = set_name(&w, &r.set);
     // The first static object of D, drawn per step as in the paper's Fig. 12.
-    let cat_obj = match &r.set {
-        ObjectSet::Objects(v) => v
-            .iter()
-            .copied()
-            .find(|&i| w.objects[i].kind != ObjectKind::Boulder),
-        ObjectSet::Agent => None,
-    };
+    let cat_obj = r
+        .set
+        .indices()
+        .iter()
+        .copied()
+        .find(|&i| w.objects[i].kind != ObjectKind::Boulder);
     if let Some(path) = &a.png {
         let values: Vec<f64> = steps.iter().map(|s| s.2).collect();
         let labels: Vec<Option<String>> = steps
