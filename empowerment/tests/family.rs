@@ -20,18 +20,23 @@ use rand_chacha::ChaCha8Rng;
 const HU: u32 = 8;
 const HE: u32 = 3;
 
+/// The family service's settings with the family's tool and horizons.
+fn config(horizon_sum: bool, task_conditions: bool, cache_bytes: usize, keep: u64) -> FamilyConfig {
+    FamilyConfig {
+        tool: None,
+        horizon_unequipped: HU,
+        horizon_equipped: HE,
+        horizon_sum,
+        task_conditions,
+        cache_bytes,
+        keep,
+    }
+}
+
 fn tables(horizon_sum: bool) -> FamilyTables {
     FamilyTables::new(
         load_family("toolbox").unwrap(),
-        FamilyConfig {
-            tool: None,
-            horizon_unequipped: HU,
-            horizon_equipped: HE,
-            horizon_sum,
-            task_conditions: false,
-            cache_bytes: 1 << 20,
-            keep: 2,
-        },
+        config(horizon_sum, false, 1 << 20, 2),
     )
     .unwrap()
 }
@@ -93,18 +98,10 @@ fn the_cache_drops_the_oldest_layouts_and_keeps_the_first() {
     let family = load_family("toolbox").unwrap();
     let mut t = FamilyTables::new(
         family.clone(),
-        FamilyConfig {
-            tool: None,
-            horizon_unequipped: HU,
-            horizon_equipped: HE,
-            horizon_sum: true,
-            task_conditions: false,
-            // Room for one layout beyond the kept one, at most (a tree's table is
-            // ~46 KB: 1,990 values and a direct index of 9,600 keys; a boulder's
-            // ~1.2 MB), so every layout made evicts the one before.
-            cache_bytes: 60 << 10,
-            keep: 1,
-        },
+        // Room for one layout beyond the kept one, at most (a tree's table is ~46 KB:
+        // 1,990 values and a direct index of 9,600 keys; a boulder's ~1.2 MB), so every
+        // layout made evicts the one before.
+        config(true, false, 60 << 10, 1),
     )
     .unwrap();
     let start = |seed| family.layout(seed).unwrap().initial;
@@ -129,19 +126,7 @@ fn the_cache_drops_the_oldest_layouts_and_keeps_the_first() {
 #[test]
 fn a_potential_runs_tables_count_a_boulder_by_its_condition() {
     let family = load_family("toolbox").unwrap();
-    let mut t = FamilyTables::new(
-        family.clone(),
-        FamilyConfig {
-            tool: None,
-            horizon_unequipped: HU,
-            horizon_equipped: HE,
-            horizon_sum: true,
-            task_conditions: true,
-            cache_bytes: 1 << 30,
-            keep: 0,
-        },
-    )
-    .unwrap();
+    let mut t = FamilyTables::new(family.clone(), config(true, true, 1 << 30, 0)).unwrap();
     let mut boulders = 0;
     for seed in 0..200u64 {
         let w = parse_world(&family.layout_text(seed).unwrap(), "layout.toml").unwrap();

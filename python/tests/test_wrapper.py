@@ -1,5 +1,7 @@
 """EmpowermentReward: R + beta * b on the hand-checked path to the tree of exp1-tree."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 import gymnasium as gym
@@ -164,38 +166,15 @@ def test_empowerment_reward_on_a_stochastic_world_pays_the_noisy_channels_e():
     assert len({round(v, 6) for v in by_h[8][1]}) >= 2
 
 
-BOULDER_ROOM = '''name = "boulder-room"
-max_steps = 50
-map = """
-#######
-#@.b..#
-#..0..#
-#.....#
-#######
-"""
-
-[tools]
-b = "pickaxe"
-
-[task]
-kind = "destroy"
-objects = ["boulder"]
-
-[empowerment]
-tool = "pickaxe"
-objects = ["boulder"]
-horizon_unequipped = 6
-horizon_equipped = 3
-beta = 0.001
-'''
+# A room whose task is to destroy a boulder the agent can also push about.
+BOULDER_ROOM = Path(__file__).resolve().parents[2] / "tests" / "worlds" / "boulder-room.toml"
 
 
-def test_the_potential_counts_a_destroy_tasks_boulder_by_its_condition(tmp_path):
+def test_the_potential_counts_a_destroy_tasks_boulder_by_its_condition():
     # As in training: the boulder intact or destroyed, not its cell. Phi = H + 1 - d(s)
     # where the pickaxe destroys it in d <= H = 6 steps, so max Phi = 6 (d = 1 facing
     # it, the pickaxe chosen) and beta = 0.4 / 6.
-    path = tmp_path / "boulder-room.toml"
-    path.write_text(BOULDER_ROOM)
+    path = BOULDER_ROOM
     env = EmpowermentReward(fulcrum.make_vec(str(path), num_envs=1))
     assert env.settings.startswith(
         f"horizon-potential: beta {0.4 / 6!r}, pickaxe -> conditions:boulder, h 6"

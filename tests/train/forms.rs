@@ -175,39 +175,14 @@ fn one_horizon_everywhere_with_horizon_mode_fixed_and_recorded_episodes() {
     assert!(cfg.contains("horizon_mode = \"fixed\""), "{cfg}");
 }
 
-/// A room whose task is to destroy a boulder the agent can also push about.
-const BOULDER_ROOM: &str = r#"name = "boulder-room"
-max_steps = 50
-map = """
-#######
-#@.b..#
-#..0..#
-#.....#
-#######
-"""
-
-[tools]
-b = "pickaxe"
-
-[task]
-kind = "destroy"
-objects = ["boulder"]
-
-[empowerment]
-tool = "auto"
-objects = ["boulder"]
-horizon_unequipped = 6
-horizon_equipped = 3
-beta = 0.001
-"#;
-
 #[test]
 fn the_potential_counts_a_destroy_tasks_boulder_by_its_condition() {
+    // A room whose task is to destroy a boulder the agent can also push about.
+    let w = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/worlds/boulder-room.toml"
+    );
     let root = TempDir::fresh("conditions");
-    std::fs::create_dir_all(&root).unwrap();
-    let world = root.join("boulder-room.toml");
-    std::fs::write(&world, BOULDER_ROOM).unwrap();
-    let w = world.to_str().unwrap();
     let run = |tag: &str, extra: &[&str]| {
         let dir = root.join(tag);
         let d = dir.to_str().unwrap();
