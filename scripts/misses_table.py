@@ -34,8 +34,13 @@ def fisher_two_sided(a, b, c, d):
     return min(1.0, sum(p(x) for x in range(lo, hi + 1) if p(x) <= here * (1 + 1e-7)))
 
 
-def from_experiments(dirs):
-    """docs/results/misses.csv from the experiments' summaries: a row per arm and seed."""
+# The outcomes: with the potential counting a boulder's cells (the first runs), and by
+# its condition (`train --potential-objects task`, the default since).
+CSVS = ["misses.csv", "misses-task.csv"]
+
+
+def from_experiments(name, dirs):
+    """docs/results/NAME from the experiments' summaries: a row per arm and seed."""
     rows = []
     for d in dirs:
         with open(os.path.join(d, "summary.json")) as f:
@@ -45,7 +50,7 @@ def from_experiments(dirs):
             for r in arm["per_seed"]:
                 t = r["steps_to_threshold"]
                 rows.append([world, arm["name"], r["seed"], "" if t is None else int(t), f"{r['final_success']:.4f}"])
-    path = os.path.join(ROOT, "docs", "results", "misses.csv")
+    path = os.path.join(ROOT, "docs", "results", name)
     with open(path + ".tmp", "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["world", "arm", "seed", "steps_to_0.9", "final_success"])
@@ -55,10 +60,23 @@ def from_experiments(dirs):
 
 
 def main():
+    # --from-experiments [--name misses-task.csv] DIR...
     if sys.argv[1:2] == ["--from-experiments"]:
-        return from_experiments(sys.argv[2:])
+        args = sys.argv[2:]
+        name = "misses.csv"
+        if args[:1] == ["--name"]:
+            name, args = args[1], args[2:]
+        return from_experiments(name, args)
+    for k, name in enumerate(CSVS):
+        if k:
+            print()
+        print(f"{name}\n")
+        table(name)
+
+
+def table(name):
     runs = {}
-    with open(os.path.join(ROOT, "docs", "results", "misses.csv")) as f:
+    with open(os.path.join(ROOT, "docs", "results", name)) as f:
         for r in csv.DictReader(f):
             t = int(r["steps_to_0.9"]) if r["steps_to_0.9"] else None
             runs.setdefault(r["world"], {}).setdefault(r["arm"], []).append(t)

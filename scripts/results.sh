@@ -129,6 +129,25 @@ if [[ "$mode" != pictures || -d experiments/robust ]]; then
   quiet_if_pictures $f experiment experiments/misses/gen-12x8-t3-o2-s2017-key.toml \
     --seeds 20 --steps 999424 --arms baseline,horizon-potential --out experiments/misses/s2017-key
   python3 scripts/misses_table.py --from-experiments experiments/misses/{s1006,s1012,s2017,s2017-key,s2020}
+  # The potential counting a destroy task's boulder by its condition (train's default
+  # since): the three sets again, a fourth generated after the change, and the misses'
+  # worlds with 20 seeds. (The runs above keep their configs, which count the cells.)
+  for spec in "robust gen:20" "robust-fresh gen:20:seed=1001" "robust-third gen:20:seed=2001" \
+      "robust-fourth gen:20:seed=3001"; do
+    set -- $spec
+    quiet_if_pictures $f experiment --worlds "$2" --seeds 3 --steps 999424 \
+      --arms baseline,horizon-potential --out "experiments/task/$1"
+    cp "experiments/task/$1/summary.md" "$out/task-$1-summary.md"
+    cp "experiments/task/$1/summary.json" "$out/task-$1-summary.json"
+  done
+  for w in s1006 s1012 s2017 s2020; do
+    src=experiments/robust-fresh/worlds
+    [[ $w == s20* ]] && src=experiments/robust-third/worlds
+    quiet_if_pictures $f experiment "$src/gen-12x8-t3-o2-$w.toml" \
+      --seeds 20 --steps 999424 --arms baseline,horizon-potential --out "experiments/task/misses/$w"
+  done
+  python3 scripts/misses_table.py --from-experiments --name misses-task.csv \
+    experiments/task/misses/{s1006,s1012,s2017,s2020}
   for world in exp2 exp3; do
     quiet_if_pictures $f experiment "$world" --seeds 10 --steps 2998272 \
       --arms baseline,horizon-potential --out "experiments/default-beta/$world"

@@ -1,7 +1,6 @@
 #!/usr/bin/env python3
-"""The tables of RESULTS.md ("Worlds nobody wrote"): reads the summaries of the three
-robustness experiments committed as docs/results/robust-summary.json,
-docs/results/robust-fresh-summary.json and docs/results/robust-third-summary.json
+"""The tables of RESULTS.md ("Worlds nobody wrote"): reads the summaries of the
+robustness experiments committed as docs/results/<set>-summary.json (the sets in SETS)
 (written by `fulcrum experiment --worlds`, every (world, seed) pair's steps to 0.9 in
 `per_pair`) and prints, per arm, the pairs solved,
 their share with its Wilson 95% interval, the IQM of steps to 0.9 with its bootstrap
@@ -21,7 +20,17 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from noisy_tables import log_rank, pt  # noqa: E402
 
 ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..")
-SETS = ["robust", "robust-fresh", "robust-third"]
+# The three sets with the potential counting a boulder's cells, then the same three and a
+# fourth with train's default since (a destroy task's boulder by its condition).
+SETS = [
+    "robust",
+    "robust-fresh",
+    "robust-third",
+    "task-robust",
+    "task-robust-fresh",
+    "task-robust-third",
+    "task-robust-fourth",
+]
 
 
 def st(x):
@@ -113,9 +122,50 @@ def table(name):
     return "\n".join(lines)
 
 
+def pairs_of(name, arm):
+    d = json.load(open(os.path.join(ROOT, "docs", "results", f"{name}-summary.json")))
+    (a,) = [a for a in d["arms"] if a["name"] == arm]
+    return {(p["world"], p["seed"]): p["steps_to_threshold"] for p in a["per_pair"]}
+
+
+def sign_test(k, n):
+    """Exact two-sided sign test: the binomial test of k of n at 1/2."""
+    if n == 0:
+        return 1.0
+    k = min(k, n - k)
+    return min(1.0, 2 * sum(math.comb(n, i) for i in range(k + 1)) / 2**n)
+
+
+def rule_change():
+    """The default's runs by the boulder's cells against by its condition, pair for pair,
+    on the worlds of the first three sets whose runs changed (the baseline's did not)."""
+    worlds = pairs = only_new = only_old = faster = slower = 0
+    for name in SETS[:3]:
+        assert pairs_of(name, "baseline") == pairs_of(f"task-{name}", "baseline"), name
+        old, new = pairs_of(name, "horizon-potential"), pairs_of(f"task-{name}", "horizon-potential")
+        changed = {w for (w, _), t in new.items() if old[(w, _)] != t}
+        worlds += len(changed)
+        for k, t in new.items():
+            if k[0] not in changed:
+                continue
+            pairs += 1
+            o = old[k]
+            only_new += o is None and t is not None
+            only_old += o is not None and t is None
+            if o is not None and t is not None:
+                faster += t < o
+                slower += t > o
+    return (
+        f"horizon-potential by the boulder's cells -> by its condition: {worlds} worlds changed, "
+        f"{pairs} pairs; solved only by condition {only_new}, only by cells {only_old}; "
+        f"where both solve, faster {faster}, slower {slower} (two-sided sign test p: {pt(sign_test(faster, faster + slower))})"
+    )
+
+
 def main():
     for name in SETS:
         print(f"{name}\n\n{table(name)}\n")
+    print(rule_change())
 
 
 if __name__ == "__main__":
