@@ -318,7 +318,7 @@ pub(super) fn empowerment_big(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
 /// the time from the layout seed to the whole table the empowerment service would answer
 /// from for train's default form (the layout drawn and parsed, its states enumerated, the
 /// matrix's tool selection for the task object, the potential Phi = sum over h <= 8 of
-/// E^h in every state): median, 99th percentile and mean (what a run meeting a layout
+/// E^h in every state, a boulder counted by its condition as train's default counts it): median, 99th percentile and mean (what a run meeting a layout
 /// an episode pays on average), and the table's size. What a service computing E for
 /// a layout on first sight would pay per layout.
 pub(super) fn family_layouts(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
@@ -330,11 +330,9 @@ pub(super) fn family_layouts(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
         let t0 = Instant::now();
         let w = f.layout(seed)?;
         let engine = Engine::new(&w, Limits::default())?;
-        let set = w
-            .empowerment
-            .objects
-            .clone()
-            .context("a family's layout names its task object")?;
+        // The objects train's default form counts (a destroy task's boulder by its
+        // condition).
+        let set = fulcrum_empowerment::request::potential_objects(&w, None, true)?;
         let e = &w.empowerment;
         let (_, table) = fulcrum_empowerment::request::lookup_table(
             &w,
