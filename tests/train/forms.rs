@@ -206,12 +206,7 @@ fn the_potential_counts_a_destroy_tasks_boulder_by_its_condition() {
     let (cfg, err) = run("full", &["--potential-objects", "full"]);
     assert!(cfg.contains("potential_objects = \"full\"\n"), "{cfg}");
     assert!(err.contains("tool selection for boulder: pickaxe"), "{err}");
-    let beta: f64 = cfg
-        .lines()
-        .find_map(|l| l.strip_prefix("beta = "))
-        .unwrap()
-        .parse()
-        .unwrap();
+    let beta = beta_of(&cfg);
     assert!(beta < 0.4 / 6.0, "{beta}");
     // The additive bonus is E itself: the full state.
     let (_, err) = run("additive", &["--intrinsic", "additive"]);

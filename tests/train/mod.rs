@@ -117,6 +117,15 @@ fn assert_nothing_left(ns: &str) {
     }
 }
 
+/// The `beta = ` line of a run's `config.toml`.
+fn beta_of(cfg: &str) -> f64 {
+    cfg.lines()
+        .find_map(|l| l.strip_prefix("beta = "))
+        .expect("config.toml has beta")
+        .parse()
+        .expect("beta is a number")
+}
+
 fn wait_rows(dir: &Path, n: usize, limit: Duration) {
     wait_until(limit, &format!("{n} metrics rows"), || {
         read_metrics(&dir.join("metrics.csv"))

@@ -9,7 +9,7 @@ use std::time::Duration;
 use fulcrum_learner::metrics::read_metrics;
 use fulcrum_learner::trap::WINDOW_STEPS;
 
-use super::{finish, train};
+use super::{beta_of, finish, train};
 use crate::util::TempDir;
 
 /// Standing next to the tree with the axe pays beta * E = 0.05 a step (E = 1 bit),
@@ -214,12 +214,7 @@ fn the_default_beta_of_horizon_potential_keeps_a_path_worth_0_4() {
     );
     assert!(s.success(), "{err}");
     let cfg = config(&d);
-    let beta: f64 = cfg
-        .lines()
-        .find_map(|l| l.strip_prefix("beta = "))
-        .unwrap()
-        .parse()
-        .unwrap();
+    let beta = beta_of(&cfg);
     // The table holds Phi in f32.
     assert!((beta - 0.4 / max_phi).abs() < 1e-6, "beta {beta}: {cfg}");
     // An explicit beta is kept as given.
