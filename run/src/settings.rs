@@ -122,7 +122,8 @@ pub struct Fixed {
     /// Tool of the empowerment channel: a tool, `all`, or `auto` [default: the world's].
     #[arg(long, value_parser = |s: &str| Ok::<_, String>(ChannelTool::from(s)))]
     pub tool: Option<ChannelTool>,
-    /// Objects of interest, joint (`a,b`) [default: the world's].
+    /// Objects of interest, joint (`a,b`; `conditions:a,b` by their conditions only)
+    /// [default: the world's].
     #[arg(long)]
     pub objects: Option<String>,
     /// Horizon where the tool is not held [default: the world's].

@@ -130,7 +130,8 @@ pub struct ServeArgs {
     /// matrix). Default: the world's [empowerment] tool.
     #[arg(long)]
     pub tool: Option<String>,
-    /// Objects of interest, joint: `a,b` or `agent`. Default: the world's.
+    /// Objects of interest, joint: `a,b` or `agent`; `conditions:a,b` counts them by their
+    /// conditions only (a boulder intact or destroyed). Default: the world's.
     #[arg(long)]
     pub objects: Option<String>,
     /// Horizon where the tool is not held (default: the world's).
@@ -227,7 +228,9 @@ pub struct Channel {
     /// Default: the world's [empowerment] tool (auto = the matrix's selection).
     #[arg(long)]
     pub tool: Option<String>,
-    /// Object set D, joint: `a,b` (or `a+b`), or `agent`. Default: the world's.
+    /// Object set D, joint: `a,b` (or `a+b`), or `agent`; `conditions:a,b` counts them by
+    /// their conditions only (a boulder intact or destroyed, whatever its cell). Default:
+    /// the world's.
     #[arg(long)]
     pub objects: Option<String>,
     /// Horizon h. Default: the world's, by whether the tool is held.
