@@ -72,6 +72,12 @@ pub struct RunConfig {
     pub empowerment_from: Option<String>,
     /// Tool of the channel (`default`, `auto`, `all` or a tool).
     pub tool: ChannelTool,
+    /// The tool the selection (`auto`) gave when the run started on one world. A
+    /// resumed run keeps it, whatever the selection gives then. Absent for a named tool,
+    /// a family (a selection per layout) and a configuration written before the field,
+    /// whose service selects again at every start.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub selected_tool: Option<String>,
     /// Objects of interest, comma separated (empty = the world's default).
     pub objects: String,
     /// Horizon where the tool is not held.
@@ -602,6 +608,7 @@ mod tests {
             empowerment_model: EmpowermentModel::Exact,
             empowerment_from: None,
             tool: ChannelTool::Auto,
+            selected_tool: None,
             objects: String::new(),
             horizon_unequipped: 2,
             horizon_equipped: 1,

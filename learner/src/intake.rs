@@ -73,6 +73,7 @@ mod tests {
             empowerment_model: fulcrum_contracts::config::EmpowermentModel::Exact,
             empowerment_from: None,
             tool: ChannelTool::Auto,
+            selected_tool: None,
             objects: String::new(),
             horizon_unequipped: 2,
             horizon_equipped: 1,

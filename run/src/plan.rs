@@ -192,6 +192,16 @@ fn resume(a: &TrainRequest, dir: &Path) -> Result<Planned> {
                 cfg.world_hash
             ));
         }
+        if let Some(t) = &cfg.selected_tool {
+            if w.tool_index(t).is_none() {
+                return bad(format!(
+                    "{}: the run's config.toml records the selected tool '{t}', which is not a tool of world '{}' (tools: {})",
+                    dir.display(),
+                    w.name,
+                    w.tool_list()
+                ));
+            }
+        }
         // A damaged checkpoint is refused here, before any process starts.
         let ckpt = paths.checkpoint();
         if ckpt.exists() {
@@ -300,6 +310,8 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
         empowerment_model: a.empowerment_model.unwrap_or_default(),
         empowerment_from: None,
         tool: a.tool.clone().unwrap_or_default(),
+        // Set below, once the settings are checked.
+        selected_tool: None,
         objects: a.objects.clone().unwrap_or_default(),
         horizon_unequipped: a.horizon_unequipped.unwrap_or(e.horizon_unequipped),
         horizon_equipped: match (fixed, a.horizon_equipped) {
@@ -348,6 +360,9 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
                     w.tool_list()
                 ));
             }
+        }
+        if family.is_none() && form.uses_empowerment() {
+            cfg.selected_tool = selected_tool(&model_world(&w, cfg.empowerment_model), &cfg)?;
         }
         if form == Intrinsic::HorizonPotential && a.beta.is_none() {
             // A family's potential differs from layout to layout: the largest over its
@@ -411,6 +426,27 @@ pub fn estimates_table(w: &World, cfg: &RunConfig, file: &Path) -> Result<Vec<f3
         &text,
         &file.display().to_string(),
     )?)
+}
+
+/// The tool `auto` selects for the run's channel on `w` (the objects its service counts),
+/// recorded so that a resume keeps it; `None` where the run names its tool.
+fn selected_tool(w: &World, cfg: &RunConfig) -> Result<Option<String>> {
+    let choice = fulcrum_empowerment::request::tool_choice(w, cfg.tool.as_request())?;
+    if choice != fulcrum_world::ToolChoice::Auto {
+        return Ok(None);
+    }
+    let engine = fulcrum_empowerment::Engine::new(w, fulcrum_empowerment::Limits::default())?;
+    let set = potential_objects(
+        w,
+        (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
+        cfg.task_conditions(),
+    )?;
+    Ok(
+        match fulcrum_empowerment::request::tool_sel(w, &engine, Some("auto"), &set)? {
+            fulcrum_empowerment::ToolSel::Tool(k) => Some(w.tools[k].name.clone()),
+            fulcrum_empowerment::ToolSel::All => None,
+        },
+    )
 }
 
 /// Layouts of a family whose potentials set horizon-potential's default beta.

@@ -44,7 +44,9 @@ pub fn record(
         (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
         cfg.task_conditions(),
     )?;
-    let tool: ToolSel = tool_sel(w, &e, cfg.tool.as_request(), &set)?;
+    // The tool the run recorded when it started, if its selection gave one.
+    let asked = cfg.selected_tool.as_deref().or(cfg.tool.as_request());
+    let tool: ToolSel = tool_sel(w, &e, asked, &set)?;
     let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
     let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;
     let value = |s: &fulcrum_world::State| -> Option<f64> {

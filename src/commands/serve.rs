@@ -29,6 +29,8 @@ struct Served {
     objects: Option<String>,
     /// A potential form's run counting a destroy task's objects by their conditions.
     task_conditions: bool,
+    /// The tool the run's selection gave at its first start: kept at a resume.
+    recorded_tool: Option<String>,
     horizon_unequipped: Option<u32>,
     horizon_equipped: Option<u32>,
     horizon_sum: bool,
@@ -49,6 +51,7 @@ impl Served {
                 tool: cfg.tool.as_request().map(str::to_string),
                 objects: (!cfg.objects.is_empty()).then(|| cfg.objects.clone()),
                 task_conditions: cfg.task_conditions(),
+                recorded_tool: cfg.selected_tool.clone(),
                 horizon_unequipped: Some(cfg.horizon_unequipped),
                 horizon_equipped: Some(cfg.horizon_equipped),
                 horizon_sum: cfg.form().horizon_sum(),
@@ -62,6 +65,7 @@ impl Served {
             tool: a.tool.clone(),
             objects: a.objects.clone(),
             task_conditions: false,
+            recorded_tool: None,
             horizon_unequipped: a.horizon_unequipped,
             horizon_equipped: a.horizon_equipped,
             horizon_sum: a.horizon_sum,
@@ -98,7 +102,24 @@ pub fn run(args: &ServeArgs) -> Result<()> {
     let w = &*w;
     let set = potential_objects(w, a.objects.as_deref(), a.task_conditions)?;
     let e = engine(w)?;
-    let (tool, matrix) = tool_sel_with_column(w, &e, a.tool.as_deref(), &set)?;
+    let (mut tool, matrix) = tool_sel_with_column(w, &e, a.tool.as_deref(), &set)?;
+    if let Some(name) = &a.recorded_tool {
+        // A resumed run keeps the tool its selection gave when it started.
+        let Some(k) = w.tool_index(name) else {
+            return bad(format!(
+                "the run's config.toml records the selected tool '{name}', which is not a tool of world '{}' (tools: {})",
+                w.name,
+                w.tool_list()
+            ));
+        };
+        if tool != ToolSel::Tool(k) {
+            eprintln!(
+                "the run selected {name} when it started; the selection gives {} now: keeping {name}",
+                tool.name(w)
+            );
+            tool = ToolSel::Tool(k);
+        }
+    }
     let hu = a
         .horizon_unequipped
         .unwrap_or(w.empowerment.horizon_unequipped);

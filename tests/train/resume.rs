@@ -214,3 +214,57 @@ fn a_torn_metrics_row_is_dropped_on_resume() {
     );
     assert_contiguous(&read_metrics(&path).unwrap(), 16, 128);
 }
+
+/// A run whose tool is `auto` records the tool the selection gave at its start, and a
+/// resume keeps it whatever the selection gives then (here the record is made to
+/// disagree by hand: exp2 selects the wand for boulder+door).
+#[test]
+fn a_resume_keeps_the_tool_the_run_selected_when_it_started() {
+    let dir = TempDir::fresh("selected");
+    let d = dir.to_str().unwrap();
+    let (s, err, _) = finish(
+        train(&[&["exp2", "--steps", "256", "--out", d][..], SMALL].concat()),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    assert!(
+        err.contains("tool selection for conditions:boulder+door: wand"),
+        "{err}"
+    );
+    let path = dir.join("config.toml");
+    let cfg = std::fs::read_to_string(&path).unwrap();
+    assert!(
+        cfg.contains("\ntool = \"default\"\nselected_tool = \"wand\"\n"),
+        "{cfg}"
+    );
+    std::fs::write(
+        &path,
+        cfg.replace("selected_tool = \"wand\"", "selected_tool = \"axe\""),
+    )
+    .unwrap();
+    let (s, err, _) = finish(
+        train(&["--resume", d, "--steps", "512"]),
+        Duration::from_secs(120),
+    );
+    assert!(s.success(), "{err}");
+    assert!(
+        err.contains(
+            "the run selected axe when it started; the selection gives wand now: keeping axe"
+        ),
+        "{err}"
+    );
+    // A tool the world does not have: one sentence, exit 2, nothing started.
+    let cfg = std::fs::read_to_string(&path).unwrap();
+    std::fs::write(
+        &path,
+        cfg.replace("selected_tool = \"axe\"", "selected_tool = \"spoon\""),
+    )
+    .unwrap();
+    let (s, err, _) = finish(
+        train(&["--resume", d, "--steps", "768"]),
+        Duration::from_secs(120),
+    );
+    assert_eq!(s.code(), Some(2), "{err}");
+    assert!(err.contains("records the selected tool 'spoon'"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
