@@ -33,13 +33,15 @@ fn horizon_arg(h: Option<u32>) -> PyResult<Option<u32>> {
     }
 }
 
+/// The objects of a set by name (`agent` for the agent; `conditions:NAME` for an object
+/// counted by its condition only).
 fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
     match set {
         ObjectSet::Agent => vec!["agent".to_string()],
-        set => set
-            .indices()
+        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+        ObjectSet::Conditions { objects, .. } => objects
             .iter()
-            .map(|&i| w.objects[i].name.clone())
+            .map(|&i| format!("conditions:{}", w.objects[i].name))
             .collect(),
     }
 }

@@ -2,6 +2,7 @@
 
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -88,6 +89,19 @@ def test_trace_equals_the_cli_and_the_hand_count(fulcrum_bin):
     # tree can be felled within the horizon: at (3,2) (1 step to the axe, 4 to the
     # tree, 3 to strike = 8), at (8,2) holding it (3), and at the two prompts.
     assert got["values"].tolist() == [0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 1, 1, 0]
+
+
+def test_a_boulder_by_its_condition_against_the_hand_count():
+    # The boulder room (agent (1,1), pickaxe (3,1), boulder (3,2)), h = 3 along E, E: by
+    # its condition the boulder can be destroyed only from (3,1) with the pickaxe held
+    # (apply, pickaxe, S); by its cell it has 5 outcomes there (tests/cli/mod.rs).
+    world = str(Path(__file__).resolve().parents[2] / "tests" / "worlds" / "boulder-room.toml")
+    got = empowerment.trace(world, ["E", "E"], objects="conditions:boulder", horizon=3)
+    assert got["objects"] == ["conditions:boulder"]
+    assert got["values"].tolist() == [0, 0, 1]
+    full = empowerment.trace(world, ["E", "E"], objects="boulder", horizon=3)
+    assert full["objects"] == ["boulder"]
+    assert full["values"][2] == pytest.approx(np.log2(5))
 
 
 def test_value_at_states_and_the_cli_query(fulcrum_bin):

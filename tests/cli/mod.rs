@@ -642,3 +642,47 @@ fn a_stall_timeout_without_listen_is_refused() {
         "{err}"
     );
 }
+
+/// `conditions:boulder` through the binary, against hand counts on the boulder room
+/// (agent (1,1), pickaxe (3,1), boulder (3,2) in a 5 x 3 floor), h = 3 along E, E.
+#[test]
+fn a_boulder_by_its_condition_against_hand_counts() {
+    let world = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/worlds/boulder-room.toml"
+    );
+    let values = |objects: &str| -> (Value, Vec<f64>) {
+        let v = json(&[
+            "empowerment",
+            "trace",
+            world,
+            "--objects",
+            objects,
+            "--horizon",
+            "3",
+            "--actions",
+            "E,E",
+            "--json",
+        ]);
+        let vals = v["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s["value"].as_f64().unwrap())
+            .collect();
+        (v["objects"].clone(), vals)
+    };
+    // By its condition: destroying takes apply, pickaxe, S from (3,1) holding the
+    // pickaxe (t = 2), and 2 moves more before it is held (t = 0: 5 > 3; t = 1: 4 > 3).
+    let (objects, cond) = values("conditions:boulder");
+    assert_eq!(objects, serde_json::json!(["conditions:boulder"]));
+    assert_eq!(cond, [0.0, 0.0, 1.0]);
+    // By its cell: at t = 0 it can stay, be pushed to (4,2) (S, E, E) or to (3,3) (E, E
+    // picking the pickaxe up, S): 3 outcomes; at t = 2 it can stay, go to (3,3) (S), to
+    // (4,2) (W, S, E), to (2,2) (E, S, W) or be destroyed: 5 (the wall stops a second
+    // push south).
+    let (objects, full) = values("boulder");
+    assert_eq!(objects, serde_json::json!(["boulder"]));
+    assert!((full[0] - 3f64.log2()).abs() < 1e-12, "{full:?}");
+    assert!((full[2] - 5f64.log2()).abs() < 1e-12, "{full:?}");
+}

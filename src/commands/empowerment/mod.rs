@@ -273,13 +273,15 @@ fn ansi_colour(v: f64, max: f64) -> u8 {
     RAMP[i.clamp(1, RAMP.len() - 1)]
 }
 
+/// The objects of a set by name (`agent` for the agent; `conditions:NAME` for an object
+/// counted by its condition only).
 fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
     match set {
         ObjectSet::Agent => vec!["agent".to_string()],
-        set => set
-            .indices()
+        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
+        ObjectSet::Conditions { objects, .. } => objects
             .iter()
-            .map(|&i| w.objects[i].name.clone())
+            .map(|&i| format!("conditions:{}", w.objects[i].name))
             .collect(),
     }
 }
