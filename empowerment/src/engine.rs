@@ -80,6 +80,20 @@ pub fn set_name(world: &World, set: &ObjectSet) -> String {
     }
 }
 
+/// The objects of a set, one name each, as the `--json` outputs and the Python package
+/// list them: `agent`; an object's name; `conditions:NAME` for an object counted by its
+/// condition only.
+pub fn set_objects(world: &World, set: &ObjectSet) -> Vec<String> {
+    match set {
+        ObjectSet::Agent => vec!["agent".to_string()],
+        ObjectSet::Objects(v) => v.iter().map(|&i| world.objects[i].name.clone()).collect(),
+        ObjectSet::Conditions { objects, .. } => objects
+            .iter()
+            .map(|&i| format!("conditions:{}", world.objects[i].name))
+            .collect(),
+    }
+}
+
 /// The tool-object empowerment matrix and the selection it makes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Matrix {

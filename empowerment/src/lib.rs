@@ -61,7 +61,9 @@ pub mod space;
 pub mod stochastic;
 
 pub use capacity::Capacity;
-pub use engine::{select, set_name, Engine, Landscape, Matrix, Method, ToolSel, TraceStep};
+pub use engine::{
+    select, set_name, set_objects, Engine, Landscape, Matrix, Method, ToolSel, TraceStep,
+};
 pub use error::EngineError;
 pub use limits::Limits;
 pub use space::{StateIndex, StateSpace};

@@ -5,7 +5,7 @@
 //! The work runs with the GIL released; a world's state space is enumerated once per
 //! `World` object and kept.
 
-use fulcrum_empowerment::{request, Engine, Method, ToolSel};
+use fulcrum_empowerment::{request, set_objects, Engine, Method, ToolSel};
 use fulcrum_world::{ObjectSet, State, World, MAX_HORIZON};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::prelude::*;
@@ -30,19 +30,6 @@ fn horizon_arg(h: Option<u32>) -> PyResult<Option<u32>> {
             "horizon {h} is too large: at most {MAX_HORIZON}"
         ))),
         h => Ok(h),
-    }
-}
-
-/// The objects of a set by name (`agent` for the agent; `conditions:NAME` for an object
-/// counted by its condition only).
-fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
-    match set {
-        ObjectSet::Agent => vec!["agent".to_string()],
-        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
-        ObjectSet::Conditions { objects, .. } => objects
-            .iter()
-            .map(|&i| format!("conditions:{}", w.objects[i].name))
-            .collect(),
     }
 }
 

@@ -24,8 +24,9 @@ use crate::lock::{lock_for_run, DirLock};
 use crate::process::{cores, utc_stamp};
 use crate::settings::{Fixed, Resumable};
 use fulcrum_empowerment::request::{objects_or_default, potential_objects};
+use fulcrum_empowerment::ToolSel;
 use fulcrum_world::family::load_world_or_family;
-use fulcrum_world::Layouts;
+use fulcrum_world::{Layouts, ObjectSet};
 
 /// What the user asked for; `None` = the default (or, on a resume, the run's own).
 #[derive(Debug, Clone, Default)]
@@ -361,34 +362,40 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
                 ));
             }
         }
-        if family.is_none() && form.uses_empowerment() {
-            cfg.selected_tool = selected_tool(&model_world(&w, cfg.empowerment_model), &cfg)?;
+        // On one world, one state space serves the selection's record, the default beta
+        // and the estimates' check.
+        let mw = model_world(&w, cfg.empowerment_model);
+        let one = match family {
+            None if form.uses_empowerment() => Some(channel(&mw, &cfg)?),
+            _ => None,
+        };
+        if let Some(ch) = &one {
+            let choice = fulcrum_empowerment::request::tool_choice(&mw, cfg.tool.as_request())?;
+            if let (fulcrum_world::ToolChoice::Auto, ToolSel::Tool(k)) = (choice, ch.tool) {
+                cfg.selected_tool = Some(mw.tools[k].name.clone());
+            }
         }
         if form == Intrinsic::HorizonPotential && a.beta.is_none() {
             // A family's potential differs from layout to layout: the largest over its
             // first layouts (the training layouts, at most POTENTIAL_LAYOUTS of them).
-            let worlds = match (&family, layouts) {
-                (Some(f), Some(l)) => (0..l.range().end.min(POTENTIAL_LAYOUTS))
-                    .map(|seed| f.layout(seed))
-                    .collect::<std::result::Result<Vec<_>, _>>()?,
-                _ => vec![w.clone()],
+            let max = match (&family, layouts, &one) {
+                (Some(f), Some(l), _) => {
+                    let mut max = 0.0f64;
+                    for seed in 0..l.range().end.min(POTENTIAL_LAYOUTS) {
+                        let lw = f.layout(seed)?;
+                        let lw = model_world(&lw, cfg.empowerment_model);
+                        max = max.max(max_potential(&channel(&lw, &cfg)?, &cfg)?);
+                    }
+                    max
+                }
+                (_, _, Some(ch)) => max_potential(ch, &cfg)?,
+                _ => 0.0,
             };
-            let mut max = 0.0f64;
-            for lw in &worlds {
-                max = max.max(max_potential(
-                    &model_world(lw, cfg.empowerment_model),
-                    cfg.tool.as_request(),
-                    (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
-                    cfg.task_conditions(),
-                    cfg.horizon_unequipped,
-                    cfg.horizon_equipped,
-                )?);
-            }
             cfg.beta = form.default_beta(e.beta, max);
         }
-        if let Some(file) = &a.empowerment_from {
+        if let (Some(file), Some(ch)) = (&a.empowerment_from, &one) {
             // Every state needs its estimates: checked now, before any process starts.
-            estimates_table(&w, &cfg, file)?;
+            estimates_table(ch, &cfg, file)?;
             cfg.empowerment_from = Some(
                 std::fs::canonicalize(file)
                     .unwrap_or(file.clone())
@@ -402,24 +409,16 @@ pub fn plan(request: &TrainRequest) -> Result<(RunConfig, World)> {
 
 /// The LOOKUP table a run's service serves from the estimates in `file`
 /// ([`fulcrum_empowerment::estimates`]), for the run's channel and form.
-pub fn estimates_table(w: &World, cfg: &RunConfig, file: &Path) -> Result<Vec<f32>> {
+fn estimates_table(ch: &Channel<'_>, cfg: &RunConfig, file: &Path) -> Result<Vec<f32>> {
     let text = std::fs::read_to_string(file).map_err(|e| {
         BadRequest(format!(
             "cannot read --empowerment-from {}: {e}",
             file.display()
         ))
     })?;
-    let mw = model_world(w, cfg.empowerment_model);
-    let engine = fulcrum_empowerment::Engine::new(&mw, fulcrum_empowerment::Limits::default())?;
-    let set = potential_objects(
-        &mw,
-        (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
-        cfg.task_conditions(),
-    )?;
-    let tool = fulcrum_empowerment::request::tool_sel(&mw, &engine, cfg.tool.as_request(), &set)?;
     Ok(fulcrum_empowerment::estimates::lookup_from_estimates(
-        &engine,
-        tool,
+        &ch.engine,
+        ch.tool,
         cfg.horizon_unequipped,
         cfg.horizon_equipped,
         cfg.intrinsic.horizon_sum(),
@@ -428,46 +427,44 @@ pub fn estimates_table(w: &World, cfg: &RunConfig, file: &Path) -> Result<Vec<f3
     )?)
 }
 
-/// The tool `auto` selects for the run's channel on `w` (the objects its service counts),
-/// recorded so that a resume keeps it; `None` where the run names its tool.
-fn selected_tool(w: &World, cfg: &RunConfig) -> Result<Option<String>> {
-    let choice = fulcrum_empowerment::request::tool_choice(w, cfg.tool.as_request())?;
-    if choice != fulcrum_world::ToolChoice::Auto {
-        return Ok(None);
-    }
+/// A run's channel on a world: its state space, the objects its service counts and the
+/// tool (the one the run recorded at its start, else as its settings ask).
+pub(crate) struct Channel<'w> {
+    /// The world's state space.
+    pub(crate) engine: fulcrum_empowerment::Engine<'w>,
+    /// The objects the run's service counts ([`potential_objects`]).
+    pub(crate) set: ObjectSet,
+    /// The tool whose actions drive the channel.
+    pub(crate) tool: ToolSel,
+}
+
+/// The channel of the run `cfg` on `w` (the world E is computed on).
+pub(crate) fn channel<'w>(w: &'w World, cfg: &RunConfig) -> Result<Channel<'w>> {
     let engine = fulcrum_empowerment::Engine::new(w, fulcrum_empowerment::Limits::default())?;
     let set = potential_objects(
         w,
         (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
         cfg.task_conditions(),
     )?;
-    Ok(
-        match fulcrum_empowerment::request::tool_sel(w, &engine, Some("auto"), &set)? {
-            fulcrum_empowerment::ToolSel::Tool(k) => Some(w.tools[k].name.clone()),
-            fulcrum_empowerment::ToolSel::All => None,
-        },
-    )
+    let asked = cfg.selected_tool.as_deref().or(cfg.tool.as_request());
+    let tool = fulcrum_empowerment::request::tool_sel(w, &engine, asked, &set)?;
+    Ok(Channel { engine, set, tool })
 }
 
 /// Layouts of a family whose potentials set horizon-potential's default beta.
 const POTENTIAL_LAYOUTS: u64 = 16;
 
-/// The largest potential Phi(s) = sum over h = 1..H of E^h(s) over the world's state
-/// space, for the channel the run's service will serve (the same tool, objects and
-/// horizons, resolved the same way): horizon-potential's default beta is
+/// The largest potential Phi(s) = sum over h = 1..H of E^h(s) over the channel's state
+/// space, at the run's horizons: horizon-potential's default beta is
 /// `HORIZON_POTENTIAL_WORTH / max Phi` ([`Intrinsic::default_beta`]).
-fn max_potential(
-    w: &World,
-    tool: Option<&str>,
-    objects: Option<&str>,
-    task_conditions: bool,
-    horizon_unequipped: u32,
-    horizon_equipped: u32,
-) -> Result<f64> {
-    let engine = fulcrum_empowerment::Engine::new(w, fulcrum_empowerment::Limits::default())?;
-    let set = potential_objects(w, objects, task_conditions)?;
-    let tool = fulcrum_empowerment::request::tool_sel(w, &engine, tool, &set)?;
-    let phi = engine.lookup_values(tool, &set, horizon_unequipped, horizon_equipped, true)?;
+fn max_potential(ch: &Channel<'_>, cfg: &RunConfig) -> Result<f64> {
+    let phi = ch.engine.lookup_values(
+        ch.tool,
+        &ch.set,
+        cfg.horizon_unequipped,
+        cfg.horizon_equipped,
+        true,
+    )?;
     Ok(phi.iter().copied().fold(0.0f32, f32::max) as f64)
 }
 

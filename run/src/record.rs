@@ -14,14 +14,14 @@ use crate::error::{Context, Result};
 use fulcrum_actors::policy::Policy;
 use fulcrum_contracts::checkpoint;
 use fulcrum_contracts::config::RunConfig;
-use fulcrum_empowerment::{Method, ToolSel};
+use fulcrum_empowerment::Method;
 use fulcrum_learner::paths::RunPaths;
 use fulcrum_world::World;
 use rand::{RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::error::bad;
-use fulcrum_empowerment::request::{engine, potential_objects, tool_sel};
+use crate::plan::{channel, Channel};
 
 /// Plays `episodes` episodes of the run's policy and draws each as
 /// `out/episode-<k>.png` (and, with `gif`, as the animation `out/episode-<k>.gif`, one
@@ -37,16 +37,13 @@ pub fn record(
 ) -> Result<Vec<(PathBuf, u32)>> {
     let (mut policy, _) = load_policy(&paths.checkpoint(), paths, cfg, w)?;
 
-    // E for every state, by the run's channel (the objects its service counts).
-    let e = engine(w)?;
-    let set = potential_objects(
-        w,
-        (!cfg.objects.is_empty()).then_some(cfg.objects.as_str()),
-        cfg.task_conditions(),
-    )?;
-    // The tool the run recorded when it started, if its selection gave one.
-    let asked = cfg.selected_tool.as_deref().or(cfg.tool.as_request());
-    let tool: ToolSel = tool_sel(w, &e, asked, &set)?;
+    // E for every state, by the run's channel (the objects its service counts, the tool
+    // it recorded at its start).
+    let Channel {
+        engine: e,
+        set,
+        tool,
+    } = channel(w, cfg)?;
     let vu = e.values(tool, &set, cfg.horizon_unequipped, Method::Dp)?;
     let ve = e.values(tool, &set, cfg.horizon_equipped, Method::Dp)?;
     let value = |s: &fulcrum_world::State| -> Option<f64> {

@@ -6,7 +6,7 @@ use std::io::IsTerminal;
 use std::time::Instant;
 
 use anyhow::Result;
-use fulcrum_empowerment::{set_name, Engine, Method, ToolSel};
+use fulcrum_empowerment::{set_name, set_objects, Engine, Method, ToolSel};
 use fulcrum_world::{ObjectKind, ObjectSet, State, World};
 use serde_json::json;
 
@@ -271,19 +271,6 @@ fn ansi_colour(v: f64, max: f64) -> u8 {
     }
     let i = ((v / max) * (RAMP.len() - 1) as f64).round() as usize;
     RAMP[i.clamp(1, RAMP.len() - 1)]
-}
-
-/// The objects of a set by name (`agent` for the agent; `conditions:NAME` for an object
-/// counted by its condition only).
-fn set_objects(w: &World, set: &ObjectSet) -> Vec<String> {
-    match set {
-        ObjectSet::Agent => vec!["agent".to_string()],
-        ObjectSet::Objects(v) => v.iter().map(|&i| w.objects[i].name.clone()).collect(),
-        ObjectSet::Conditions { objects, .. } => objects
-            .iter()
-            .map(|&i| format!("conditions:{}", w.objects[i].name))
-            .collect(),
-    }
 }
 
 fn trace(a: &TraceArgs) -> Result<()> {
