@@ -321,6 +321,7 @@ impl<'a> Actor<'a> {
                     &mut got,
                     &mut vals,
                     MAX_BATCH,
+                    true,
                 );
             }
             match result {
@@ -442,6 +443,7 @@ impl<'a> Actor<'a> {
                         &mut self.lookups.answered,
                         &mut self.intrinsic,
                         self.sub_batch,
+                        false,
                     ) {
                         service_trouble(self.stop, self.id.index, &e);
                         self.lookups.failed = true;
@@ -594,6 +596,7 @@ impl<'a> Actor<'a> {
                         &mut self.lookups.answered,
                         &mut self.intrinsic,
                         self.sub_batch,
+                        true,
                     ) {
                         service_trouble(self.stop, self.id.index, &e);
                         failed = true;

@@ -28,7 +28,11 @@ pub(crate) struct Asked<'a> {
 }
 
 /// Send pending states and collect answers until either everything collected is
-/// sent or the pipe is full; then collect one answer.
+/// sent or the pipe is full; then collect one answer, waiting for it where the pipe is
+/// full or `wait` (everything is sent and nothing more is coming), and else only the
+/// answers that have come (a chunk still being played goes on stepping while the
+/// service works: on a family run it may be making several new layouts' tables).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn pump(
     cl: &mut Client,
     ask: Ask,
@@ -37,23 +41,41 @@ pub(crate) fn pump(
     answered: &mut usize,
     out: &mut [f32],
     sub_batch: usize,
+    wait: bool,
 ) -> Result<(), ClientError> {
     while *sent < states.len() && cl.in_flight() < MAX_IN_FLIGHT {
         let end = (*sent + sub_batch).min(states.len());
         cl.submit_on(ask, &states[*sent..end], layouts.map(|l| &l[*sent..end]))?;
         *sent = end;
     }
-    if cl.in_flight() > 0 && (cl.in_flight() >= MAX_IN_FLIGHT || *sent == states.len()) {
-        let b = cl.recv()?;
-        if let Some(bad) = b.status.iter().position(|&s| s != item::OK) {
-            return Err(ClientError::Ipc(format!(
-                "state {} of a chunk is not in the world's state space",
-                *answered + bad
-            )));
-        }
-        out[*answered..*answered + b.values.len()].copy_from_slice(&b.values);
-        *answered += b.values.len();
+    if cl.in_flight() == 0 {
+        return Ok(());
     }
+    if cl.in_flight() >= MAX_IN_FLIGHT || (wait && *sent == states.len()) {
+        let b = cl.recv()?;
+        take(b, answered, out)?;
+    } else {
+        while let Some(b) = cl.try_recv()? {
+            take(b, answered, out)?;
+        }
+    }
+    Ok(())
+}
+
+/// One answer into `out` at `answered`.
+fn take(
+    b: fulcrum_empowerment::service::Batch,
+    answered: &mut usize,
+    out: &mut [f32],
+) -> Result<(), ClientError> {
+    if let Some(bad) = b.status.iter().position(|&s| s != item::OK) {
+        return Err(ClientError::Ipc(format!(
+            "state {} of a chunk is not in the world's state space",
+            *answered + bad
+        )));
+    }
+    out[*answered..*answered + b.values.len()].copy_from_slice(&b.values);
+    *answered += b.values.len();
     Ok(())
 }
 
@@ -112,6 +134,7 @@ pub(crate) fn look_up_resets(
             &mut got,
             vals,
             MAX_BATCH,
+            true,
         )?;
     }
     Ok(())

@@ -156,3 +156,61 @@ fn a_potential_runs_tables_count_a_boulder_by_its_condition() {
     }
     assert_eq!(boulders, 5);
 }
+
+/// The requests waiting at once are answered as each would be alone: `prepare` makes the
+/// new layouts they name (once each, several at a time) and nothing else, and the
+/// answers that follow are those of a service that met the requests one by one.
+#[test]
+fn requests_prepared_together_are_answered_as_one_by_one() {
+    use fulcrum_contracts::msg::{kind, status, EmpRequest, EmpResponse};
+    use fulcrum_empowerment::service::Answer;
+    let family = load_family("toolbox").unwrap();
+    let mut together = FamilyTables::new(family.clone(), config(true, true, 1 << 30, 1)).unwrap();
+    let mut alone = FamilyTables::new(family.clone(), config(true, true, 1 << 30, 1)).unwrap();
+    let hash = together.describe().world_hash;
+    // Three requests: layouts 0 (kept), 5, 9 and 12, some named twice and in two
+    // requests, each state the initial state or one step from it; and a request of
+    // another world naming layout 40, which nobody makes.
+    let request = |hash: u64, seeds: &[u64]| {
+        let mut r = EmpRequest::boxed();
+        r.world_hash = hash;
+        r.kind = kind::LOOKUP;
+        r.count = seeds.len() as u32;
+        for (i, &seed) in seeds.iter().enumerate() {
+            let w = family.layout(seed).unwrap();
+            let s = if i % 2 == 0 {
+                w.initial
+            } else {
+                w.step(&w.initial, fulcrum_world::EAST)
+            };
+            r.states[i] = s.to_bytes();
+            r.layouts[i] = seed;
+        }
+        r
+    };
+    let reqs = [
+        request(hash, &[5, 0, 9, 5]),
+        request(hash ^ 1, &[40]),
+        request(hash, &[12, 9, 12, 0, 5]),
+    ];
+    let refs: Vec<&EmpRequest> = reqs.iter().map(|r| &**r).collect();
+    together.prepare(&refs);
+    assert_eq!(together.stats.made, 1 + 3, "layouts 5, 9 and 12, once each");
+    for r in &reqs {
+        let (mut a, mut b) = (EmpResponse::boxed(), EmpResponse::boxed());
+        together.answer(r, &mut a);
+        alone.answer(r, &mut b);
+        assert_eq!(a.status, b.status);
+        assert_eq!(a.count, b.count);
+        assert_eq!(a.item_status, b.item_status);
+        assert_eq!(a.values, b.values);
+        // Phi by the task object's condition: a whole number of bits (max(0, 9 - d)).
+        let n = a.count as usize;
+        assert!(a.values[..n].iter().all(|v| v.fract() == 0.0 && *v <= 9.0));
+    }
+    let mut out = EmpResponse::boxed();
+    together.answer(&reqs[1], &mut out);
+    assert_eq!(out.status, status::WRONG_WORLD, "another world's request");
+    assert_eq!(together.stats.made, 4, "answering made nothing more");
+    assert_eq!(alone.stats.made, 4);
+}

@@ -833,3 +833,60 @@ fn layout_phi(w: &World, e: &Engine) -> Vec<f64> {
         .map(|i| by_h.iter().map(|v| v[i]).sum())
         .collect()
 }
+
+/// Requests sent back to back, each naming layouts never met, wait together at the
+/// service, which makes their tables at once; collected without waiting (`try_recv`, as
+/// an actor collects while it plays a chunk), each answer is its own request's, in order,
+/// with every layout's own values.
+#[test]
+fn a_family_service_answers_pipelined_requests_for_new_layouts_in_order() {
+    use fulcrum_world::family::load_family;
+    let ns = namespace("family-pipe");
+    let serve = Serve::start("toolbox", &ns, &["--horizon-sum"]);
+    assert!(serve.ready.contains("world family toolbox"));
+    let family = load_family("toolbox").unwrap();
+    let mut c = Client::connect_to(
+        &ns,
+        "toolbox",
+        family.content_hash(),
+        Duration::from_secs(10),
+    )
+    .unwrap();
+    assert!(c.try_recv().unwrap().is_none(), "nothing in flight");
+    let mut want: Vec<Vec<f64>> = Vec::new();
+    for r in 0..msg::MAX_IN_FLIGHT as u64 {
+        // Two layouts a request, none met before: 20 + 2r and 21 + 2r, ten states each.
+        let (mut states, mut layouts, mut w) = (Vec::new(), Vec::new(), Vec::new());
+        for seed in [20 + 2 * r, 21 + 2 * r] {
+            let world = family.layout(seed).unwrap();
+            let e = Engine::new(&world, Limits::default()).unwrap();
+            let phi = layout_phi(&world, &e);
+            for s in random_states(&e, 10, seed) {
+                states.push(s);
+                layouts.push(seed);
+                w.push(phi[e.space.id(&s).unwrap() as usize]);
+            }
+        }
+        c.submit_on(Ask::Lookup, &states, Some(&layouts)).unwrap();
+        want.push(w);
+    }
+    let t0 = std::time::Instant::now();
+    let mut got = 0;
+    while got < want.len() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "answers did not come"
+        );
+        let Some(b) = c.try_recv().unwrap() else {
+            std::thread::sleep(Duration::from_micros(200));
+            continue;
+        };
+        assert_eq!(b.values.len(), want[got].len());
+        for ((v, st), w) in b.values.iter().zip(&b.status).zip(&want[got]) {
+            assert_eq!(*st, item::OK);
+            assert!((*v as f64 - w).abs() < 1e-4, "request {got}: {v} vs {w}");
+        }
+        got += 1;
+    }
+    assert_eq!(c.in_flight(), 0);
+}

@@ -9,6 +9,15 @@ pub trait Answer {
     fn describe(&self) -> &Describe;
     /// Answer one request into `out` (all-zero on entry). Never panics on input.
     fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse);
+    /// Whether [`Answer::prepare`] does anything: the serving loop then gathers every
+    /// waiting request before it answers the first.
+    fn prepares(&self) -> bool {
+        false
+    }
+    /// Get ready to answer `reqs`, the requests waiting now, which are then answered one
+    /// by one in their order (a family's service makes their new layouts' tables at
+    /// once). Never panics on input; the answers are the same with or without it.
+    fn prepare(&mut self, _reqs: &[&EmpRequest]) {}
 }
 
 /// What every answer starts with: the request's sequence number and `describe` copied

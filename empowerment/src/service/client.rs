@@ -317,6 +317,33 @@ impl Client {
         })?
     }
 
+    /// The oldest request's answer if it has come, without waiting (`None`: not yet).
+    pub fn try_recv(&mut self) -> Result<Option<Batch>, ClientError> {
+        let Some((pending, seq)) = self.in_flight.front() else {
+            return Ok(None);
+        };
+        loop {
+            match pending.receive() {
+                Ok(Some(r)) => {
+                    let p: &EmpResponse = r.payload();
+                    if p.seq != *seq {
+                        continue;
+                    }
+                    let n = answered(p)?;
+                    let batch = Batch {
+                        values: p.values[..n].to_vec(),
+                        status: p.item_status[..n].to_vec(),
+                    };
+                    drop(r);
+                    self.in_flight.pop_front();
+                    return Ok(Some(batch));
+                }
+                Ok(None) => return Ok(None),
+                Err(e) => return Err(ClientError::transport("receive", e)),
+            }
+        }
+    }
+
     /// Wait for the oldest request's answer and copy it into `values` / `status`.
     pub fn recv_into(
         &mut self,

@@ -14,6 +14,16 @@
 //! dropped, so actors never wait on a table; other layouts (a run on every layout,
 //! held-out layouts) are dropped oldest first once the tables outgrow `cache_bytes`.
 //!
+//! Tables are made several at a time: the serving loop gathers every request waiting
+//! when it wakes and [`Answer::prepare`] makes the tables of all the new layouts they
+//! name at once, one layout a thread of rayon's pool (a layout's own propagation takes
+//! the other threads when it is the last left), before the requests are answered in
+//! their order. An actor playing a chunk sends its lookups as it steps and collects
+//! only the answers already there, so on a run with a fresh layout every episode the
+//! requests of a chunk wait together and the machine's cores make its new layouts side
+//! by side. Answers are the same either way (values do not depend on the order tables
+//! are made in).
+//!
 //! The service answers LOOKUP, VISIT (counts per layout and state) and DESCRIBE; QUERY,
 //! which names tools and objects by index, is for the service of one world
 //! ([`super::Tables`]) and is refused with `BAD_KIND`.
@@ -25,6 +35,8 @@ use fulcrum_contracts::msg::{self, item, kind, status, Describe, EmpRequest, Emp
 use fulcrum_world::family::Family;
 use fulcrum_world::hash::FastMap;
 use fulcrum_world::State;
+
+use rayon::prelude::*;
 
 use super::answer::Answer;
 use crate::limits::Limits;
@@ -50,6 +62,29 @@ pub struct FamilyConfig {
     pub cache_bytes: usize,
     /// Layouts whose tables are made first and never dropped: the seeds `0..keep`.
     pub keep: u64,
+}
+
+/// Layout `seed`'s table under `cfg`: the values of every state, in the layout's own
+/// state ids.
+fn make_table(family: &Family, cfg: &FamilyConfig, seed: u64) -> Result<LayoutTable, String> {
+    let w = family.layout(seed).map_err(|e| e.to_string())?;
+    let engine = Engine::new(&w, Limits::default()).map_err(|e| e.to_string())?;
+    let set = potential_objects(&w, None, cfg.task_conditions).map_err(|e| e.to_string())?;
+    let (_, values) = lookup_table(
+        &w,
+        &engine,
+        cfg.tool.as_deref(),
+        &set,
+        cfg.horizon_unequipped,
+        cfg.horizon_equipped,
+        cfg.horizon_sum,
+    )
+    .map_err(|e| format!("layout {seed}: {e}"))?;
+    Ok(LayoutTable {
+        index: engine.into_space().into_index(),
+        values,
+        visits: Vec::new(),
+    })
 }
 
 /// One layout's table.
@@ -121,8 +156,9 @@ impl FamilyTables {
             describe: d,
             stats: FamilyStats::default(),
         };
-        for seed in 0..t.cfg.keep {
-            let table = t.make(seed)?;
+        let kept: Vec<u64> = (0..t.cfg.keep).collect();
+        for (seed, table) in t.make_all(&kept) {
+            let table = table?;
             t.describe.states += table.values.len() as u64;
             t.tables.insert(seed, Some(table));
         }
@@ -134,37 +170,38 @@ impl FamilyTables {
         &self.family
     }
 
-    /// Layout `seed`'s table: the values of every state, in the layout's own state ids.
-    fn make(&mut self, seed: u64) -> Result<LayoutTable, String> {
+    /// Make the tables of `seeds` (distinct, none made yet), several at once: one layout
+    /// a thread of rayon's pool, and each layout's own propagation free to take the
+    /// other threads when it is the last one left. Returned in the order of `seeds`.
+    fn make_all(&mut self, seeds: &[u64]) -> Vec<(u64, Result<LayoutTable, String>)> {
+        let (family, cfg) = (&self.family, &self.cfg);
         let t0 = Instant::now();
-        let w = self.family.layout(seed).map_err(|e| e.to_string())?;
-        let engine = Engine::new(&w, Limits::default()).map_err(|e| e.to_string())?;
-        let set =
-            potential_objects(&w, None, self.cfg.task_conditions).map_err(|e| e.to_string())?;
-        let (_, values) = lookup_table(
-            &w,
-            &engine,
-            self.cfg.tool.as_deref(),
-            &set,
-            self.cfg.horizon_unequipped,
-            self.cfg.horizon_equipped,
-            self.cfg.horizon_sum,
-        )
-        .map_err(|e| format!("layout {seed}: {e}"))?;
-        self.stats.made += 1;
+        let made: Vec<_> = seeds
+            .par_iter()
+            .map(|&seed| (seed, make_table(family, cfg, seed)))
+            .collect();
+        let ok = made.iter().filter(|(_, t)| t.is_ok()).count();
+        self.stats.made += ok as u64;
         self.stats.made_us += t0.elapsed().as_micros() as u64;
-        Ok(LayoutTable {
-            index: engine.into_space().into_index(),
-            values,
-            visits: Vec::new(),
-        })
+        made
     }
 
     /// The table of layout `seed`, made now if it is not there (`None`: no table can be
     /// made for it).
     fn table(&mut self, seed: u64) -> Option<&mut LayoutTable> {
         if !self.tables.contains_key(&seed) {
-            let made = match self.make(seed) {
+            let made = self.make_all(&[seed]);
+            self.keep_made(made);
+        }
+        self.tables.get_mut(&seed).and_then(Option::as_mut)
+    }
+
+    /// Keep tables just made (a layout none could be made for is kept as `None`, so it
+    /// is not tried again), dropping the oldest beyond the kept layouts while the cache
+    /// holds more than `cache_bytes`.
+    fn keep_made(&mut self, made: Vec<(u64, Result<LayoutTable, String>)>) {
+        for (seed, made) in made {
+            let made = match made {
                 Ok(t) => Some(t),
                 Err(e) => {
                     tracing::warn!(layout = seed, "no table for the layout: {e}");
@@ -186,7 +223,6 @@ impl FamilyTables {
             self.order.push_back(seed);
             self.tables.insert(seed, made);
         }
-        self.tables.get_mut(&seed).and_then(Option::as_mut)
     }
 
     /// The largest value of layout `seed`'s table (`None`: no table can be made for it).
@@ -235,6 +271,35 @@ impl FamilyTables {
 impl Answer for FamilyTables {
     fn describe(&self) -> &Describe {
         &self.describe
+    }
+
+    fn prepares(&self) -> bool {
+        true
+    }
+
+    /// Make the tables of every layout the waiting requests name that has none yet, all
+    /// at once (see the module docs).
+    fn prepare(&mut self, reqs: &[&EmpRequest]) {
+        let mut seeds: Vec<u64> = Vec::new();
+        for req in reqs {
+            let admitted = req.world_hash == self.describe.world_hash
+                && (req.count as usize) <= msg::MAX_BATCH
+                && matches!(req.kind, kind::LOOKUP | kind::VISIT);
+            if !admitted {
+                continue;
+            }
+            for &seed in &req.layouts[..req.count as usize] {
+                if !self.tables.contains_key(&seed) {
+                    seeds.push(seed);
+                }
+            }
+        }
+        seeds.sort_unstable();
+        seeds.dedup();
+        if !seeds.is_empty() {
+            let made = self.make_all(&seeds);
+            self.keep_made(made);
+        }
     }
 
     fn answer(&mut self, req: &EmpRequest, out: &mut EmpResponse) {

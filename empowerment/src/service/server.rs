@@ -4,6 +4,9 @@
 //! intervals (one checks the stop flag every 100 ms, one cleans up after dead
 //! processes and logs the counters every 2 s). Woken by a client, it drains the
 //! requests, then polls a short while for pipelined follow-ups before blocking again.
+//! Where the answers prepare ([`Answer::prepares`]: a family's service) each look takes
+//! every request waiting, lets [`Answer::prepare`] see them all, then answers them in
+//! order.
 
 use std::collections::HashMap;
 use std::time::{Duration, Instant};
@@ -192,6 +195,9 @@ impl Ports {
     }
 }
 
+/// A request received and not yet answered.
+type Request = ActiveRequest<ipc::Service, EmpRequest, u128, EmpResponse, ()>;
+
 /// One serving run's state between wake-ups.
 struct Run<'a> {
     answers: &'a mut dyn Answer,
@@ -229,6 +235,18 @@ impl Run<'_> {
         let mut last_look = false;
         loop {
             match self.ports.server.receive() {
+                Ok(Some(req)) if self.answers.prepares() => {
+                    let Some(waiting) = self.gather(req) else {
+                        return CallbackProgression::Stop;
+                    };
+                    let reqs: Vec<&EmpRequest> = waiting.iter().map(|r| r.payload()).collect();
+                    self.answers.prepare(&reqs);
+                    for req in &waiting {
+                        self.handle(req);
+                    }
+                    idle_since = Instant::now();
+                    last_look = false;
+                }
                 Ok(Some(req)) => {
                     self.handle(&req);
                     idle_since = Instant::now();
@@ -251,8 +269,24 @@ impl Run<'_> {
         }
     }
 
+    /// `first` and every other request waiting now, in their order (`None`: receiving
+    /// failed, and `failure` says why).
+    fn gather(&mut self, first: Request) -> Option<Vec<Request>> {
+        let mut waiting = vec![first];
+        loop {
+            match self.ports.server.receive() {
+                Ok(Some(req)) => waiting.push(req),
+                Ok(None) => return Some(waiting),
+                Err(e) => {
+                    self.failure = Some(ServiceError::ipc("receive", e));
+                    return None;
+                }
+            }
+        }
+    }
+
     /// Answer one active request and wake its client.
-    fn handle(&mut self, req: &ActiveRequest<ipc::Service, EmpRequest, u128, EmpResponse, ()>) {
+    fn handle(&mut self, req: &Request) {
         let t0 = Instant::now();
         let mut resp = match req.loan_uninit() {
             Ok(r) => r,
