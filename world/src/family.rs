@@ -16,15 +16,17 @@
 //! distinct floor cells drawn uniformly (with `divider`: the agent and the tools in the
 //! west room, the task object in the east room). The task is to destroy the task
 //! object. A draw whose task cannot be done within `max_steps` (a breadth-first search
-//! with the world's own step: [`fewest_steps_to_task`](crate::generate::fewest_steps_to_task)) is drawn again from the same
-//! generator, so the layout of a seed is the first solvable draw.
+//! with the world's own step, [`fewest_steps_to_task`](crate::generate::fewest_steps_to_task),
+//! answered first by a short plan where one does it:
+//! [`task_doable_within`](crate::generate::task_doable_within), the same answer) is drawn
+//! again from the same generator, so the layout of a seed is the first solvable draw.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Deserialize;
 use toml::Spanned;
 
-use crate::generate::fewest_steps_to_task;
+use crate::generate::task_doable_within;
 pub use crate::parse::is_family_text;
 use crate::parse::{parse_world, Ctx, WorldError, MAX_HORIZON};
 use crate::state::MAX_TOOLS;
@@ -384,7 +386,7 @@ impl Family {
         for _ in 0..MAX_DRAWS {
             let text = self.draw(&mut rng, seed);
             let w = parse_world(&text, &format!("{}-{seed}", self.name))?;
-            if fewest_steps_to_task(&w, w.max_steps).is_some() {
+            if task_doable_within(&w, w.max_steps) {
                 return Ok((text, w));
             }
         }

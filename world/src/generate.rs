@@ -187,6 +187,125 @@ pub fn fewest_steps_to_task(w: &World, limit: u32) -> Option<u32> {
     None
 }
 
+/// Whether the task of `w` can be done within `limit` steps from its initial state:
+/// always the answer of `fewest_steps_to_task(w, limit).is_some()`, found faster where
+/// a short plan does it. The plan, for a task to destroy one object: walk (moves only,
+/// breadth first) to the first state from which some held tool, used toward the object
+/// in a straight line (apply, select the tool, the direction), destroys it; the plan is
+/// then played from the initial state with the world's own step, and only a plan that
+/// does the task within `limit` steps answers yes. Where there is no such plan (the
+/// object behind a door to open first, several objects, a push task) or it is too long,
+/// the whole search answers. A layout's draw asks this for every candidate, so it is
+/// on the path of every episode of a run with a fresh layout each episode.
+pub fn task_doable_within(w: &World, limit: u32) -> bool {
+    if let Some(plan) = walk_and_use_plan(w, limit) {
+        if plays_the_task(w, &plan, limit) {
+            return true;
+        }
+    }
+    fewest_steps_to_task(w, limit).is_some()
+}
+
+/// Whether `plan`, played from the initial state, does the task within `limit` steps.
+fn plays_the_task(w: &World, plan: &[u8], limit: u32) -> bool {
+    let mut s = w.initial;
+    let mut paid = 0u16;
+    for (t, &a) in plan.iter().enumerate() {
+        if t as u32 >= limit {
+            return false;
+        }
+        w.step_in_place(&mut s, a);
+        if w.task_reward(&s, &mut paid).1 {
+            return true;
+        }
+    }
+    false
+}
+
+/// [`task_doable_within`]'s plan: moves to a state from which a tool use toward the one
+/// task object destroys it, then that use; `None` where no walk of fewer than `limit`
+/// moves reaches one.
+fn walk_and_use_plan(w: &World, limit: u32) -> Option<Vec<u8>> {
+    let Task::Destroy(list) = &w.task else {
+        return None;
+    };
+    let &[target] = list.as_slice() else {
+        return None;
+    };
+    // The state after using held tool k toward direction d from `s` in normal mode.
+    let uses = |s: &State| -> Option<[u8; 3]> {
+        let (ox, oy) = object_cell(w, s, target)?;
+        let d = if ox == s.x as usize {
+            if oy < s.y as usize {
+                crate::world::NORTH
+            } else {
+                crate::world::SOUTH
+            }
+        } else if oy == s.y as usize {
+            if ox > s.x as usize {
+                crate::world::EAST
+            } else {
+                crate::world::WEST
+            }
+        } else {
+            return None;
+        };
+        (0..w.tools.len())
+            .filter(|&k| s.holds(k))
+            .map(|k| [crate::world::APPLY, crate::world::SELECT0 + k as u8, d])
+            .find(|acts| {
+                let mut n = *s;
+                for &a in acts {
+                    w.step_in_place(&mut n, a);
+                }
+                w.cond(&n, target) == crate::world::DESTROYED
+            })
+    };
+    // Breadth first over moves alone: (state, parent, move).
+    let mut nodes: Vec<(State, u32, u8)> = vec![(w.initial, u32::MAX, 0)];
+    let mut seen: crate::hash::FastSet<State> = crate::hash::FastSet::default();
+    seen.insert(w.initial);
+    let (mut start, mut depth) = (0, 0u32);
+    while start < nodes.len() && depth + 3 <= limit {
+        let end = nodes.len();
+        for i in start..end {
+            let s = nodes[i].0;
+            if let Some(acts) = uses(&s) {
+                let mut plan = acts.to_vec();
+                let mut at = i;
+                while nodes[at].1 != u32::MAX {
+                    plan.push(nodes[at].2);
+                    at = nodes[at].1 as usize;
+                }
+                plan[3..].reverse();
+                plan.rotate_left(3);
+                return Some(plan);
+            }
+            for a in 0..4u8 {
+                let n = w.step(&s, a);
+                if seen.insert(n) {
+                    nodes.push((n, i as u32, a));
+                }
+            }
+        }
+        start = end;
+        depth += 1;
+    }
+    None
+}
+
+/// The cell of object `i` in `s`: a boulder's current cell, the others' fixed one;
+/// `None` for a destroyed boulder.
+fn object_cell(w: &World, s: &State, i: usize) -> Option<(usize, usize)> {
+    let o = &w.objects[i];
+    if o.kind == crate::world::ObjectKind::Boulder {
+        let c = s.objects[i] as usize;
+        (c < w.width * w.height).then(|| (c % w.width, c / w.width))
+    } else {
+        Some((o.pos.0 as usize, o.pos.1 as usize))
+    }
+}
+
 /// How generated worlds for an experiment are asked for: `gen:N` or
 /// `gen:N:key=value,...` with keys `width`, `height`, `tools`, `objects`, `rock` (the
 /// parameters of [`generate`]) and `seed` (the first seed tried).
