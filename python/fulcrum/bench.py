@@ -5,8 +5,9 @@ Figures, from alternating repetitions in this one process, one core:
 - ``make_vec``: env steps per second of a 64-world vector environment stepped from
   Python with random actions (drawn beforehand with numpy, outside the timing), the
   loop a researcher's rollout would run;
-- the same through ``EmpowermentReward`` (the paper's additive bonus), and what the
-  lookups add to a step, in percent;
+- the same through ``EmpowermentReward`` with the paper's additive bonus
+  (``form="additive"``), and with the wrapper's default form (``horizon-potential``),
+  and what each adds to a step, in percent;
 - MiniGrid's DoorKey-5x5 (a small room with a key and a door, the closest MiniGrid
   task), 64 worlds in gymnasium's synchronous vector environment, stepped the same way,
   and fulcrum's ratio to it, when ``minigrid`` is installed.
@@ -52,28 +53,37 @@ def _minigrid():
 def run(quick: bool = False) -> dict:
     """The figures. The machine's speed drifts over seconds, so plain and wrapped
     stepping alternate in short blocks: each steps/s figure is the median over its
-    blocks, and the overhead is the median of the ratios of adjacent blocks."""
+    blocks, and each overhead is the median of the ratios of adjacent blocks."""
     blocks = 40 if quick else 200
     steps = 500
     rng = np.random.default_rng(0)
     plain = fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0)
-    wrapped = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0))
+    wrapped = EmpowermentReward(
+        fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0), form="additive"
+    )
+    default = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0))
     n_actions = plain.single_action_space.n
     actions = rng.integers(0, n_actions, size=(steps, NUM_ENVS), dtype=np.int64)
-    _rate(plain, actions), _rate(wrapped, actions)  # warm-up
-    p_rates, w_rates, ratios = [], [], []
+    _rate(plain, actions), _rate(wrapped, actions), _rate(default, actions)  # warm-up
+    p_rates, w_rates, d_rates, w_ratios, d_ratios = [], [], [], [], []
     for _ in range(blocks):
-        p, w = _rate(plain, actions), _rate(wrapped, actions)
+        p, w, d = _rate(plain, actions), _rate(wrapped, actions), _rate(default, actions)
         p_rates.append(p)
         w_rates.append(w)
-        ratios.append(p / w)
+        d_rates.append(d)
+        w_ratios.append(p / w)
+        d_ratios.append(p / d)
     out = {
         "num_envs": NUM_ENVS,
         "world": "exp1-tree",
         "make_vec_steps_per_s": statistics.median(p_rates),
+        # The additive bonus: time per wrapped step over time per plain step, minus one.
         "wrapped_steps_per_s": statistics.median(w_rates),
-        # Time per wrapped step over time per plain step, minus one.
-        "wrapper_overhead_percent": (statistics.median(ratios) - 1.0) * 100.0,
+        "wrapper_overhead_percent": (statistics.median(w_ratios) - 1.0) * 100.0,
+        # The same for the wrapper's default form.
+        "default_form": default.settings.split(":")[0],
+        "default_steps_per_s": statistics.median(d_rates),
+        "default_overhead_percent": (statistics.median(d_ratios) - 1.0) * 100.0,
         "blocks": blocks,
         "steps_per_block": steps * NUM_ENVS,
     }
@@ -101,8 +111,12 @@ def main() -> None:
         return
     print(f"make_vec exp1-tree x {NUM_ENVS}, random actions: {r['make_vec_steps_per_s']:,.0f} env steps/s")
     print(
-        f"  with EmpowermentReward: {r['wrapped_steps_per_s']:,.0f} env steps/s "
+        f"  with EmpowermentReward, additive: {r['wrapped_steps_per_s']:,.0f} env steps/s "
         f"(+{r['wrapper_overhead_percent']:.1f}% per step)"
+    )
+    print(
+        f"  with EmpowermentReward, {r['default_form']} (its default): "
+        f"{r['default_steps_per_s']:,.0f} env steps/s (+{r['default_overhead_percent']:.1f}% per step)"
     )
     if "minigrid_steps_per_s" in r:
         print(

@@ -462,7 +462,56 @@ impl Shaper {
             }
             return;
         }
-        if !form.is_potential() && form != Intrinsic::FirstVisit {
+        if form.is_potential() {
+            // The default form, b_t = gamma Phi(s_{t+1}) - Phi(s_t) (0 potential when
+            // terminal; `intrinsic::bonus`), and the potential `Shaping::chunk` carries
+            // from one step to the next (the start's after an episode ends), in one pass
+            // as the additive form's: `Shaping::chunk`'s passes through scratch arrays
+            // cost a vector step more than the lookups themselves. The inventories and
+            // paid flags are first-visit's alone.
+            let (succ, na) = (engine.space.succ_table(), engine.space.num_actions());
+            let chance = engine.world.is_stochastic();
+            let (gamma, beta, init) = (self.shaping.gamma, self.beta, self.init_id);
+            let phi_reset = self.shaping.phi_reset;
+            let values = &self.values;
+            let outs = out
+                .total
+                .iter_mut()
+                .zip(out.intrinsic.iter_mut())
+                .zip(out.value.iter_mut());
+            let carried = self.ids.iter_mut().zip(self.phi.iter_mut());
+            let ins = acts
+                .iter()
+                .zip(was_reset)
+                .zip(
+                    v.reward
+                        .iter()
+                        .zip(v.terminated.iter().zip(v.truncated.iter())),
+                )
+                .zip(eps);
+            for (
+                (((&a, &was), (&r, (&term, &trunc))), ep),
+                ((id, phi), ((total, intrinsic), value)),
+            ) in ins.zip(carried.zip(outs))
+            {
+                if was {
+                    (*id, *phi) = (init, phi_reset);
+                    (*total, *intrinsic, *value) = (r, 0.0, 0.0);
+                    continue;
+                }
+                *id = if chance {
+                    drawn_id(engine, &ep.state)
+                } else {
+                    succ[*id as usize * na + a as usize]
+                };
+                let next = values[*id as usize];
+                let b = beta * bonus(form, gamma, *phi, next, term);
+                *phi = if term || trunc { phi_reset } else { next };
+                (*total, *intrinsic, *value) = (r + b, b, next);
+            }
+            return;
+        }
+        if form != Intrinsic::FirstVisit {
             // The other forms without per-episode state (count, none): one pass, b_t
             // from s_{t+1} alone.
             for e in 0..n {

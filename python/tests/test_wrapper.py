@@ -7,6 +7,7 @@ import pytest
 import gymnasium as gym
 
 import fulcrum
+from fulcrum.empowerment import value
 from fulcrum.wrappers import EmpowermentReward
 from test_env import TO_THE_TREE, W
 
@@ -68,6 +69,54 @@ def test_potential_shaping_telescopes_by_hand():
     phi = [0] + E_NEXT  # E(s_0) = 0
     want = [g * phi[t + 1] - phi[t] for t in range(11)] + [-phi[11]]  # terminal: 0
     assert [x[1] for x in got] == pytest.approx(want)
+
+
+@pytest.mark.parametrize("form", ["potential", "horizon-potential"])
+def test_the_potential_forms_through_many_episodes_match_numpy(form):
+    # b_t = gamma Phi(s_{t+1}) - Phi(s_t), 0 potential when terminal, nothing paid on the
+    # autoreset step, Phi(s_0) after every reset, recomputed here from the values the
+    # wrapper reports. Over the agent's cell, whose E is positive everywhere (terminal
+    # states too), at h = 3: Phi(s_0) from the brute force over all action sequences
+    # (E^1 = 2 bits by hand: stay, north, south, east). World 0 plays TO_THE_TREE and its
+    # autoreset step again and again (terminations); the others act at random and reach
+    # the 100-step limit (truncations).
+    n, g, beta = 8, 0.9, 2.0
+    world = fulcrum.World("exp1-tree")
+    e = [
+        value(world, world.initial_state, tool="axe", objects="agent", horizon=h, method="enumerate")
+        for h in (1, 2, 3)
+    ]
+    assert e[0] == 2.0
+    phi0 = e[2] if form == "potential" else sum(e)
+    env = EmpowermentReward(
+        fulcrum.make_vec("exp1-tree", num_envs=n),
+        form=form,
+        beta=beta,
+        gamma=g,
+        tool="axe",
+        objects="agent",
+        horizons=3,
+    )
+    env.reset()
+    rng = np.random.default_rng(0)
+    script = TO_THE_TREE + [W]
+    phi = np.full(n, phi0)
+    starts = np.zeros(n, dtype=bool)  # this step is an autoreset step
+    terms = truncs = 0
+    for t in range(1300):
+        a = rng.integers(0, env.single_action_space.n, size=n)
+        a[0] = script[t % len(script)]
+        _, r, term, trunc, info = env.step(a)
+        v = info["empowerment"].astype(np.float64)
+        want = np.where(starts, 0.0, beta * (g * np.where(term, 0.0, v) - phi))
+        assert np.allclose(info["intrinsic_reward"], want, atol=1e-5), t
+        assert np.allclose(r, env.unwrapped._core.reward + want, atol=1e-5), t
+        assert not v[starts].any() and v[~starts].all(), t
+        phi = np.where(starts | term | trunc, phi0, v)
+        starts = term | trunc
+        terms += int(term.sum())
+        truncs += int(trunc.sum())
+    assert terms >= 100 and truncs >= (n - 1) * 12
 
 
 def test_first_visit_pays_once_per_inventory():

@@ -1,6 +1,7 @@
 //! The Python package's figures (`python -m fulcrum.bench`), when it is installed: a
-//! 64-world `make_vec` stepped from Python, the same through `EmpowermentReward`, and
-//! MiniGrid stepped the same way when `minigrid` is installed too.
+//! 64-world `make_vec` stepped from Python, the same through `EmpowermentReward` (the
+//! additive bonus, and the wrapper's default form), and MiniGrid stepped the same way
+//! when `minigrid` is installed too.
 //!
 //! The interpreter is `$FULCRUM_PYTHON`, else `python3`. Without the package the suite
 //! says so on stderr and goes on: the figures are optional, the rest is not.
@@ -41,10 +42,12 @@ pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
         .with_context(|| format!("{python} -m fulcrum.bench printed no JSON"))?;
     let get = |k: &str| v[k].as_f64();
     let n = get("num_envs").unwrap_or(0.0);
-    let (Some(plain), Some(wrapped), Some(over)) = (
+    let (Some(plain), Some(wrapped), Some(over), Some(default), Some(default_over)) = (
         get("make_vec_steps_per_s"),
         get("wrapped_steps_per_s"),
         get("wrapper_overhead_percent"),
+        get("default_steps_per_s"),
+        get("default_overhead_percent"),
     ) else {
         anyhow::bail!("{python} -m fulcrum.bench: figures missing in {v}");
     };
@@ -63,6 +66,16 @@ pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
         value: wrapped,
         unit: "steps/s",
         note: format!("(the same with the additive bonus: +{over:.1}% per step; goal < 10%)"),
+    });
+    let form = v["default_form"].as_str().unwrap_or("the default form");
+    figs.push(Figure {
+        zero_ok: false,
+        name: "python make_vec + EmpowermentReward, default form".into(),
+        value: default,
+        unit: "steps/s",
+        note: format!(
+            "(the same with {form}, the wrapper's default: +{default_over:.1}% per step)"
+        ),
     });
     if let (Some(mg), Some(ratio)) = (get("minigrid_steps_per_s"), get("ratio_to_minigrid")) {
         figs.push(Figure {
