@@ -10,6 +10,7 @@ use std::time::{Duration, Instant};
 use fulcrum_contracts::msg::{self, item, status, AGENT_BIT, TOOL_ALL};
 use fulcrum_empowerment::service::{Ask, Client, ClientError};
 use fulcrum_empowerment::{Engine, Limits, Method, ToolSel};
+use fulcrum_world::family::{load_family, Family};
 use fulcrum_world::{load_world, ObjectSet, State, World};
 use rand::{Rng, SeedableRng};
 
@@ -741,34 +742,9 @@ fn a_family_service_asks_for_ordinary_pages_and_one_worlds_does_not() {
 /// in the layout its request names; QUERY is refused.
 #[test]
 fn a_family_service_answers_each_state_from_its_own_layout() {
-    use fulcrum_world::family::load_family;
-    let ns = namespace("family");
-    let serve = Serve::start("toolbox", &ns, &["--horizon-sum"]);
-    assert!(
-        serve.ready.contains("world family toolbox"),
-        "{}",
-        serve.ready
-    );
-    let family = load_family("toolbox").unwrap();
-    let mut c = Client::connect_to(
-        &ns,
-        "toolbox",
-        family.content_hash(),
-        Duration::from_secs(10),
-    )
-    .unwrap();
+    let (_serve, family, mut c) = family_service("family");
     let seeds = [3u64, fulcrum_world::HELD_OUT_START + 11];
-    let (mut states, mut layouts, mut want) = (Vec::new(), Vec::new(), Vec::new());
-    for &seed in &seeds {
-        let w = family.layout(seed).unwrap();
-        let e = Engine::new(&w, Limits::default()).unwrap();
-        let phi = layout_phi(&w, &e);
-        for s in random_states(&e, 100, seed) {
-            states.push(s);
-            layouts.push(seed);
-            want.push(phi[e.space.id(&s).unwrap() as usize]);
-        }
-    }
+    let (states, layouts, want) = layout_states(&family, &seeds, 100);
     for (chunk, (ls, ws)) in states.chunks(msg::MAX_BATCH).zip(
         layouts
             .chunks(msg::MAX_BATCH)
@@ -818,6 +794,44 @@ fn a_family_service_answers_each_state_from_its_own_layout() {
     }
 }
 
+/// A `toolbox` service answering Phi (`--horizon-sum`) in namespace `tag`, the family,
+/// and a client connected to it.
+fn family_service(tag: &str) -> (Serve, Family, Client) {
+    let ns = namespace(tag);
+    let serve = Serve::start("toolbox", &ns, &["--horizon-sum"]);
+    assert!(
+        serve.ready.contains("world family toolbox"),
+        "{}",
+        serve.ready
+    );
+    let family = load_family("toolbox").unwrap();
+    let c = Client::connect_to(
+        &ns,
+        "toolbox",
+        family.content_hash(),
+        Duration::from_secs(10),
+    )
+    .unwrap();
+    (serve, family, c)
+}
+
+/// `per` random states of each layout of `seeds`, their layouts, and Phi at each from
+/// the layout made as one world ([`layout_phi`]).
+fn layout_states(family: &Family, seeds: &[u64], per: usize) -> (Vec<State>, Vec<u64>, Vec<f64>) {
+    let (mut states, mut layouts, mut want) = (Vec::new(), Vec::new(), Vec::new());
+    for &seed in seeds {
+        let w = family.layout(seed).unwrap();
+        let e = Engine::new(&w, Limits::default()).unwrap();
+        let phi = layout_phi(&w, &e);
+        for s in random_states(&e, per, seed) {
+            states.push(s);
+            layouts.push(seed);
+            want.push(phi[e.space.id(&s).unwrap() as usize]);
+        }
+    }
+    (states, layouts, want)
+}
+
 /// Phi = sum over h <= 8 of E^h at every state of a `toolbox` layout made as one world,
 /// with the tool its matrix selects for its task object (h 8 unequipped, 3 equipped).
 fn layout_phi(w: &World, e: &Engine) -> Vec<f64> {
@@ -840,33 +854,12 @@ fn layout_phi(w: &World, e: &Engine) -> Vec<f64> {
 /// with every layout's own values.
 #[test]
 fn a_family_service_answers_pipelined_requests_for_new_layouts_in_order() {
-    use fulcrum_world::family::load_family;
-    let ns = namespace("family-pipe");
-    let serve = Serve::start("toolbox", &ns, &["--horizon-sum"]);
-    assert!(serve.ready.contains("world family toolbox"));
-    let family = load_family("toolbox").unwrap();
-    let mut c = Client::connect_to(
-        &ns,
-        "toolbox",
-        family.content_hash(),
-        Duration::from_secs(10),
-    )
-    .unwrap();
+    let (_serve, family, mut c) = family_service("family-pipe");
     assert!(c.try_recv().unwrap().is_none(), "nothing in flight");
     let mut want: Vec<Vec<f64>> = Vec::new();
     for r in 0..msg::MAX_IN_FLIGHT as u64 {
         // Two layouts a request, none met before: 20 + 2r and 21 + 2r, ten states each.
-        let (mut states, mut layouts, mut w) = (Vec::new(), Vec::new(), Vec::new());
-        for seed in [20 + 2 * r, 21 + 2 * r] {
-            let world = family.layout(seed).unwrap();
-            let e = Engine::new(&world, Limits::default()).unwrap();
-            let phi = layout_phi(&world, &e);
-            for s in random_states(&e, 10, seed) {
-                states.push(s);
-                layouts.push(seed);
-                w.push(phi[e.space.id(&s).unwrap() as usize]);
-            }
-        }
+        let (states, layouts, w) = layout_states(&family, &[20 + 2 * r, 21 + 2 * r], 10);
         c.submit_on(Ask::Lookup, &states, Some(&layouts)).unwrap();
         want.push(w);
     }
