@@ -318,14 +318,7 @@ impl Dataset {
         use crate::npz::{Array, Data};
         let (n, m) = (self.len(), self.seq_row.len());
         let (gh, gw) = self.grid;
-        let objects: Vec<String> = match &spec.set {
-            ObjectSet::Agent => vec!["agent".into()],
-            set => set
-                .indices()
-                .iter()
-                .map(|&i| w.objects[i].name.clone())
-                .collect(),
-        };
+        let objects = crate::engine::set_objects(w, &spec.set);
         let actions: Vec<String> = (0..w.num_actions() as u8)
             .map(|a| w.action_name(a))
             .collect();

@@ -5,6 +5,7 @@ and hand counts."""
 import csv
 import json
 import subprocess
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -92,6 +93,22 @@ def test_sequences_replay_with_the_worlds_step():
     steps = d["seq_actions"][d["seq_actions"] != NO_ACTION]
     counts = np.bincount([d["tool_actions"].tolist().index(a) for a in steps], minlength=6)
     assert counts.min() > len(steps) / 6 * 0.8
+
+
+def test_a_boulder_by_its_condition_is_named_so_and_counted_by_hand():
+    # The boulder room (a 5 x 3 interior, the pickaxe, a boulder to destroy), h = 3: by
+    # its condition the boulder can be destroyed within 3 steps only with the pickaxe
+    # held and the agent beside it (apply, pickaxe, direction; fewer from the prompts):
+    # 44 ordered (boulder, agent) pairs of neighbouring cells (12 + 10 neighbours, both
+    # ways), in each of the three modes, 1 bit each.
+    world = str(Path(__file__).resolve().parents[2] / "tests" / "worlds" / "boulder-room.toml")
+    d = empowerment.dataset(
+        world, objects="conditions:boulder", tool="pickaxe", horizon=3, sequences=8, seed=1
+    )
+    assert list(d["objects"]) == ["conditions:boulder"]
+    assert sorted(d["proj_key"].tolist()) == [[0], [1]]  # intact, destroyed
+    assert sorted(set(d["E"].tolist())) == [0.0, 1.0]
+    assert d["E"].sum() == 44 * 3
 
 
 @pytest.mark.parametrize("view", ["full", "crop:2"])
