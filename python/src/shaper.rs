@@ -524,14 +524,12 @@ impl Shaper {
                 }
                 let id = next_id(engine, self.ids[e], acts[e], &eps[e]);
                 self.ids[e] = id;
-                let next = match form {
-                    Intrinsic::Count => {
-                        let c = &mut self.visits[id as usize];
-                        *c = c.saturating_add(1);
-                        *c as f32
-                    }
-                    Intrinsic::None => 0.0,
-                    _ => self.values[id as usize],
+                let next = if form == Intrinsic::Count {
+                    let c = &mut self.visits[id as usize];
+                    *c = c.saturating_add(1);
+                    *c as f32
+                } else {
+                    0.0
                 };
                 let b = bonus(form, self.shaping.gamma, 0.0, next, v.terminated[e]);
                 let intrinsic = self.beta * b;
@@ -552,17 +550,11 @@ impl Shaper {
                 s.truncated[e] = 0;
                 continue;
             }
+            // First-visit, b_t = E(s_{t+1}) once per inventory and episode (the one
+            // form left to come here).
             let id = next_id(engine, self.ids[e], acts[e], &eps[e]);
             self.ids[e] = id;
-            s.next[e] = match form {
-                Intrinsic::None => 0.0,
-                Intrinsic::Count => {
-                    let c = &mut self.visits[id as usize];
-                    *c = c.saturating_add(1);
-                    *c as f32
-                }
-                _ => self.values[id as usize],
-            };
+            s.next[e] = self.values[id as usize];
             s.next_inv[e] = eps[e].state.inventory;
             s.terminated[e] = v.terminated[e] as u8;
             s.truncated[e] = v.truncated[e] as u8;
