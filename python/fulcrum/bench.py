@@ -8,6 +8,8 @@ Figures, from alternating repetitions in this one process, one core:
 - the same through ``EmpowermentReward`` with the paper's additive bonus
   (``form="additive"``), and with the wrapper's default form (``horizon-potential``),
   and what each adds to a step, in percent;
+- the wrapper's default form on a world family (``toolbox``, 16 training layouts, a
+  table per layout), against the same vector environment unwrapped;
 - MiniGrid's DoorKey-5x5 (a small room with a key and a door, the closest MiniGrid
   task), 64 worlds in gymnasium's synchronous vector environment, stepped the same way,
   and fulcrum's ratio to it, when ``minigrid`` is installed.
@@ -64,8 +66,17 @@ def run(quick: bool = False) -> dict:
     default = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0))
     n_actions = plain.single_action_space.n
     actions = rng.integers(0, n_actions, size=(steps, NUM_ENVS), dtype=np.int64)
+    fam_plain = fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=16)
+    fam_default = EmpowermentReward(
+        fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=16)
+    )
+    fam_actions = rng.integers(
+        0, fam_plain.single_action_space.n, size=(steps, NUM_ENVS), dtype=np.int64
+    )
     _rate(plain, actions), _rate(wrapped, actions), _rate(default, actions)  # warm-up
+    _rate(fam_plain, fam_actions), _rate(fam_default, fam_actions)
     p_rates, w_rates, d_rates, w_ratios, d_ratios = [], [], [], [], []
+    fp_rates, fd_rates, f_ratios = [], [], []
     for _ in range(blocks):
         p, w, d = _rate(plain, actions), _rate(wrapped, actions), _rate(default, actions)
         p_rates.append(p)
@@ -73,6 +84,10 @@ def run(quick: bool = False) -> dict:
         d_rates.append(d)
         w_ratios.append(p / w)
         d_ratios.append(p / d)
+        fp, fd = _rate(fam_plain, fam_actions), _rate(fam_default, fam_actions)
+        fp_rates.append(fp)
+        fd_rates.append(fd)
+        f_ratios.append(fp / fd)
     out = {
         "num_envs": NUM_ENVS,
         "world": "exp1-tree",
@@ -84,6 +99,11 @@ def run(quick: bool = False) -> dict:
         "default_form": default.settings.split(":")[0],
         "default_steps_per_s": statistics.median(d_rates),
         "default_overhead_percent": (statistics.median(d_ratios) - 1.0) * 100.0,
+        # The default form on a family's 16 layouts, against the family unwrapped.
+        "family": "toolbox, 16 layouts",
+        "family_steps_per_s": statistics.median(fp_rates),
+        "family_default_steps_per_s": statistics.median(fd_rates),
+        "family_overhead_percent": (statistics.median(f_ratios) - 1.0) * 100.0,
         "blocks": blocks,
         "steps_per_block": steps * NUM_ENVS,
     }
@@ -117,6 +137,11 @@ def main() -> None:
     print(
         f"  with EmpowermentReward, {r['default_form']} (its default): "
         f"{r['default_steps_per_s']:,.0f} env steps/s (+{r['default_overhead_percent']:.1f}% per step)"
+    )
+    print(
+        f"make_vec {r['family']} x {NUM_ENVS}: {r['family_steps_per_s']:,.0f} env steps/s; "
+        f"with EmpowermentReward, {r['default_form']}: {r['family_default_steps_per_s']:,.0f} "
+        f"(+{r['family_overhead_percent']:.1f}% per step)"
     )
     if "minigrid_steps_per_s" in r:
         print(

@@ -119,9 +119,6 @@ struct Scratch {
     terminated: Vec<u8>,
     truncated: Vec<u8>,
     bonus: Vec<f32>,
-    /// On a family, the value of each environment's state: at a reset step, the
-    /// potential the new episode starts with.
-    start: Vec<f32>,
 }
 
 /// The output arrays: total reward, intrinsic part, value looked up.
@@ -232,7 +229,6 @@ impl Shaper {
                 terminated: vec![0; n],
                 truncated: vec![0; n],
                 bonus: vec![0.0; n],
-                start: vec![0.0; n],
             },
             family: None,
         })
@@ -318,7 +314,6 @@ impl Shaper {
                 terminated: vec![0; n],
                 truncated: vec![0; n],
                 bonus: vec![0.0; n],
-                start: vec![0.0; n],
             },
             family: Some(tables),
         };
@@ -612,29 +607,58 @@ impl Shaper {
         let Some(tables) = self.family.as_mut() else {
             return;
         };
+        if form != Intrinsic::FirstVisit {
+            // The forms without per-episode inventories (additive, the potentials, none):
+            // one pass, as on one world, the potential carried from step to step and a
+            // new episode's taken from its own layout.
+            let (gamma, beta) = (self.shaping.gamma, self.beta);
+            let (phi_reset, inventory_reset) =
+                (self.shaping.phi_reset, self.shaping.inventory_reset);
+            let (uses, potential) = (form.uses_empowerment(), form.is_potential());
+            for (e, ep) in eps.iter().enumerate() {
+                let value = if uses {
+                    tables.lookup(v.layout[e], &ep.state).unwrap_or(0.0)
+                } else {
+                    0.0
+                };
+                let r = v.reward[e];
+                if was_reset[e] {
+                    // The step that started a new episode pays nothing; its value is
+                    // the new episode's start potential.
+                    self.phi[e] = if potential { value } else { 0.0 };
+                    self.inv[e] = ep.state.inventory;
+                    self.paid[e] = false;
+                    let intrinsic = beta * 0.0;
+                    (out.total[e], out.intrinsic[e], out.value[e]) =
+                        (r + intrinsic, intrinsic, 0.0);
+                    continue;
+                }
+                let (term, ended) = (v.terminated[e], v.terminated[e] || v.truncated[e]);
+                let intrinsic = beta * bonus(form, gamma, self.phi[e], value, term);
+                (self.phi[e], self.inv[e]) = if ended {
+                    self.paid[e] = false;
+                    (phi_reset, inventory_reset)
+                } else {
+                    (value, ep.state.inventory)
+                };
+                (out.total[e], out.intrinsic[e], out.value[e]) = (r + intrinsic, intrinsic, value);
+            }
+            return;
+        }
+        // First-visit (the one form left): E(s_{t+1}) once per inventory and episode,
+        // through `Shaping::chunk`; a new episode starts from nothing paid.
         let s = &mut self.scratch;
         for (e, ep) in eps.iter().enumerate() {
-            let value = if form.uses_empowerment() {
-                tables.lookup(v.layout[e], &ep.state).unwrap_or(0.0)
-            } else {
+            s.next[e] = if was_reset[e] {
                 0.0
+            } else {
+                tables.lookup(v.layout[e], &ep.state).unwrap_or(0.0)
             };
-            s.next[e] = if was_reset[e] { 0.0 } else { value };
             s.next_inv[e] = ep.state.inventory;
             s.terminated[e] = (v.terminated[e] && !was_reset[e]) as u8;
             s.truncated[e] = (v.truncated[e] && !was_reset[e]) as u8;
-            // The reset step's own value: the new episode's start potential.
-            s.start[e] = value;
         }
-        let potential = form.is_potential();
-        let starts = std::mem::take(&mut s.start);
-        self.pay(was_reset, v, out, |e| {
-            (
-                if potential { starts[e] } else { 0.0 },
-                eps[e].state.inventory,
-            )
-        });
-        self.scratch.start = starts;
+        self.pay(was_reset, v, out, |e| (0.0, eps[e].state.inventory));
     }
 }
 

@@ -234,6 +234,11 @@ impl FamilyTables {
     /// LOOKUP's answer for one state of layout `seed`; `None` where the state is not one of
     /// the layout's.
     pub fn lookup(&mut self, seed: u64, s: &State) -> Option<f32> {
+        // A layout met before: one probe of the map (`table` takes two).
+        if let Some(made) = self.tables.get(&seed) {
+            let t = made.as_ref()?;
+            return Some(t.values[t.index.id(s)? as usize]);
+        }
         let t = self.table(seed)?;
         Some(t.values[t.index.id(s)? as usize])
     }

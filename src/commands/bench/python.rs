@@ -77,6 +77,22 @@ pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
             "(the same with {form}, the wrapper's default: +{default_over:.1}% per step)"
         ),
     });
+    let (Some(fam_plain), Some(fam), Some(fam_over)) = (
+        get("family_steps_per_s"),
+        get("family_default_steps_per_s"),
+        get("family_overhead_percent"),
+    ) else {
+        anyhow::bail!("{python} -m fulcrum.bench: the family's figures missing in {v}");
+    };
+    figs.push(Figure {
+        zero_ok: false,
+        name: "python make_vec toolbox + EmpowermentReward, default form".into(),
+        value: fam,
+        unit: "steps/s",
+        note: format!(
+            "(16 layouts x {n}, a table per layout: +{fam_over:.1}% per step over the family's {fam_plain:.0} unwrapped)"
+        ),
+    });
     if let (Some(mg), Some(ratio)) = (get("minigrid_steps_per_s"), get("ratio_to_minigrid")) {
         figs.push(Figure {
             zero_ok: false,
