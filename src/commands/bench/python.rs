@@ -42,15 +42,24 @@ pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
         .with_context(|| format!("{python} -m fulcrum.bench printed no JSON"))?;
     let get = |k: &str| v[k].as_f64();
     let n = get("num_envs").unwrap_or(0.0);
-    let (Some(plain), Some(wrapped), Some(over), Some(default), Some(default_over)) = (
-        get("make_vec_steps_per_s"),
-        get("wrapped_steps_per_s"),
-        get("wrapper_overhead_percent"),
-        get("default_steps_per_s"),
-        get("default_overhead_percent"),
-    ) else {
-        anyhow::bail!("{python} -m fulcrum.bench: figures missing in {v}");
+    // Every figure but MiniGrid's must be there: a missing one names itself.
+    let need = |k: &str| {
+        get(k).with_context(|| format!("{python} -m fulcrum.bench: no figure '{k}' in {v}"))
     };
+    let (plain, wrapped, over) = (
+        need("make_vec_steps_per_s")?,
+        need("wrapped_steps_per_s")?,
+        need("wrapper_overhead_percent")?,
+    );
+    let (default, default_over) = (
+        need("default_steps_per_s")?,
+        need("default_overhead_percent")?,
+    );
+    let (fam_plain, fam, fam_over) = (
+        need("family_steps_per_s")?,
+        need("family_default_steps_per_s")?,
+        need("family_overhead_percent")?,
+    );
     figs.push(Figure {
         zero_ok: false,
         name: "python make_vec env steps/s".into(),
@@ -77,13 +86,6 @@ pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> 
             "(the same with {form}, the wrapper's default: +{default_over:.1}% per step)"
         ),
     });
-    let (Some(fam_plain), Some(fam), Some(fam_over)) = (
-        get("family_steps_per_s"),
-        get("family_default_steps_per_s"),
-        get("family_overhead_percent"),
-    ) else {
-        anyhow::bail!("{python} -m fulcrum.bench: the family's figures missing in {v}");
-    };
     figs.push(Figure {
         zero_ok: false,
         name: "python make_vec toolbox + EmpowermentReward, default form".into(),
