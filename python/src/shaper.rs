@@ -628,19 +628,16 @@ impl Shaper {
                     self.phi[e] = if potential { value } else { 0.0 };
                     self.inv[e] = ep.state.inventory;
                     self.paid[e] = false;
-                    let intrinsic = beta * 0.0;
-                    (out.total[e], out.intrinsic[e], out.value[e]) =
-                        (r + intrinsic, intrinsic, 0.0);
+                    (out.total[e], out.intrinsic[e], out.value[e]) = (r, 0.0, 0.0);
                     continue;
                 }
                 let (term, ended) = (v.terminated[e], v.terminated[e] || v.truncated[e]);
                 let intrinsic = beta * bonus(form, gamma, self.phi[e], value, term);
-                (self.phi[e], self.inv[e]) = if ended {
-                    self.paid[e] = false;
-                    (phi_reset, inventory_reset)
+                if ended {
+                    (self.phi[e], self.inv[e], self.paid[e]) = (phi_reset, inventory_reset, false);
                 } else {
-                    (value, ep.state.inventory)
-                };
+                    (self.phi[e], self.inv[e]) = (value, ep.state.inventory);
+                }
                 (out.total[e], out.intrinsic[e], out.value[e]) = (r + intrinsic, intrinsic, value);
             }
             return;
