@@ -215,6 +215,24 @@ pub struct Shaping {
 }
 
 impl Shaping {
+    /// One transition of one world: b_t (before first-visit's once-per-inventory rule)
+    /// from the potential `phi` of s_t and the value `next` of s_{t+1}, and `phi` carried
+    /// on: `next`, or `reset` (the potential the next episode starts from) where the
+    /// episode ended.
+    #[inline]
+    pub fn advance(
+        &self,
+        phi: &mut f32,
+        next: f32,
+        terminated: bool,
+        truncated: bool,
+        reset: f32,
+    ) -> f32 {
+        let b = bonus(self.form, self.gamma, *phi, next, terminated);
+        *phi = if terminated || truncated { reset } else { next };
+        b
+    }
+
     /// b_t for a chunk laid out time-major (index t * m + e), from the service's values
     /// for each s_{t+1} (`next`), the inventory of each s_{t+1} and the
     /// termination/truncation flags.
@@ -272,9 +290,9 @@ impl Shaping {
         // Time-major, i = t * m + e: `e` counts round the worlds (no division per item).
         let mut e = 0;
         for (i, b) in out.iter_mut().enumerate() {
-            let ended = terminated[i] == 1 || truncated[i] == 1;
-            *b = bonus(self.form, self.gamma, phi[e], next[i], terminated[i] == 1);
-            phi[e] = if ended { phi_reset(i) } else { next[i] };
+            let (term, trunc) = (terminated[i] == 1, truncated[i] == 1);
+            let ended = term || trunc;
+            *b = self.advance(&mut phi[e], next[i], term, trunc, phi_reset(i));
             if self.form == Intrinsic::FirstVisit {
                 if next_inventory[i] != inv[e] {
                     paid[e] = false;

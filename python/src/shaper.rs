@@ -466,8 +466,8 @@ impl Shaper {
             // paid flags are first-visit's alone.
             let (succ, na) = (engine.space.succ_table(), engine.space.num_actions());
             let chance = engine.world.is_stochastic();
-            let (gamma, beta, init) = (self.shaping.gamma, self.beta, self.init_id);
-            let phi_reset = self.shaping.phi_reset;
+            let (shaping, beta, init) = (self.shaping, self.beta, self.init_id);
+            let phi_reset = shaping.phi_reset;
             let values = &self.values;
             let outs = out
                 .total
@@ -500,8 +500,7 @@ impl Shaper {
                     succ[*id as usize * na + a as usize]
                 };
                 let next = values[*id as usize];
-                let b = beta * bonus(form, gamma, *phi, next, term);
-                *phi = if term || trunc { phi_reset } else { next };
+                let b = beta * shaping.advance(phi, next, term, trunc, phi_reset);
                 (*total, *intrinsic, *value) = (r + b, b, next);
             }
             return;
@@ -610,10 +609,10 @@ impl Shaper {
         if form != Intrinsic::FirstVisit {
             // The forms without per-episode inventories (additive, the potentials, none):
             // one pass, as on one world, the potential carried from step to step and a
-            // new episode's taken from its own layout.
-            let (gamma, beta) = (self.shaping.gamma, self.beta);
-            let (phi_reset, inventory_reset) =
-                (self.shaping.phi_reset, self.shaping.inventory_reset);
+            // new episode's taken from its own layout (the inventories and paid flags
+            // are first-visit's alone).
+            let (shaping, beta) = (self.shaping, self.beta);
+            let phi_reset = shaping.phi_reset;
             let (uses, potential) = (form.uses_empowerment(), form.is_potential());
             for (e, ep) in eps.iter().enumerate() {
                 let value = if uses {
@@ -626,18 +625,12 @@ impl Shaper {
                     // The step that started a new episode pays nothing; its value is
                     // the new episode's start potential.
                     self.phi[e] = if potential { value } else { 0.0 };
-                    self.inv[e] = ep.state.inventory;
-                    self.paid[e] = false;
                     (out.total[e], out.intrinsic[e], out.value[e]) = (r, 0.0, 0.0);
                     continue;
                 }
-                let (term, ended) = (v.terminated[e], v.terminated[e] || v.truncated[e]);
-                let intrinsic = beta * bonus(form, gamma, self.phi[e], value, term);
-                if ended {
-                    (self.phi[e], self.inv[e], self.paid[e]) = (phi_reset, inventory_reset, false);
-                } else {
-                    (self.phi[e], self.inv[e]) = (value, ep.state.inventory);
-                }
+                let (term, trunc) = (v.terminated[e], v.truncated[e]);
+                let intrinsic =
+                    beta * shaping.advance(&mut self.phi[e], value, term, trunc, phi_reset);
                 (out.total[e], out.intrinsic[e], out.value[e]) = (r + intrinsic, intrinsic, value);
             }
             return;

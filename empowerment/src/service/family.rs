@@ -97,6 +97,11 @@ struct LayoutTable {
 }
 
 impl LayoutTable {
+    /// The value of `s` (`None`: not a state of this layout).
+    fn value(&self, s: &State) -> Option<f32> {
+        Some(self.values[self.index.id(s)? as usize])
+    }
+
     fn bytes(&self) -> usize {
         self.values.len() * 4 + self.index.bytes() + self.visits.len() * 4
     }
@@ -236,11 +241,9 @@ impl FamilyTables {
     pub fn lookup(&mut self, seed: u64, s: &State) -> Option<f32> {
         // A layout met before: one probe of the map (`table` takes two).
         if let Some(made) = self.tables.get(&seed) {
-            let t = made.as_ref()?;
-            return Some(t.values[t.index.id(s)? as usize]);
+            return made.as_ref()?.value(s);
         }
-        let t = self.table(seed)?;
-        Some(t.values[t.index.id(s)? as usize])
+        self.table(seed)?.value(s)
     }
 
     fn answer_items(&mut self, req: &EmpRequest, out: &mut EmpResponse, visit: bool) {
