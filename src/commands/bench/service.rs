@@ -64,7 +64,7 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
     let batch256 = sample_states(&e, 256);
     let rounds = if quick { 2000 } else { 20000 };
     let secs = if quick { 1.0 } else { 3.0 };
-    let (after_idle, floor) = round_trips(&mut c, &batch256, rounds, figs)?;
+    let [(after_idle, floor), (cold, cold_floor)] = round_trips(&mut c, &batch256, rounds, figs)?;
     throughput(c, &ns, world, &batch256, secs, figs)?;
     idle_cpu(&serve, quick, figs);
     floors(&w, &batch256, rounds, secs, figs)?;
@@ -76,17 +76,25 @@ pub(super) fn service_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()>
         note: "(p50 over the datagram ping-pong p50 after 1 ms idle, this run; goal <= 1.5x)"
             .into(),
     });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service round trip after 1 ms idle over its floor, caches evicted".into(),
+        value: cold / cold_floor,
+        unit: "x",
+        note: "(the same ratio when each pause leaves the caches cold, as a busy host does)".into(),
+    });
     Ok(())
 }
 
 /// Round trips of one client: p50 and p99 for 1 and 256 states, and after an idle gap
-/// with the datagram floor taken turn about (the two p50s it returns).
+/// with the datagram floor taken turn about, then the same with the caches evicted in
+/// each gap (the two pairs of p50s it returns: service, floor).
 fn round_trips(
     c: &mut Client,
     batch256: &[fulcrum_world::State],
     rounds: usize,
     figs: &mut Vec<Figure>,
-) -> Result<(f64, f64)> {
+) -> Result<[(f64, f64); 2]> {
     for (label, states) in [("1 state", &batch256[..1]), ("256 states", batch256)] {
         let mut t = Vec::with_capacity(rounds);
         for _ in 0..rounds {
@@ -118,25 +126,7 @@ fn round_trips(
     // pause before each, so the two meet the same machine (what the scheduler does with
     // two sleeping processes drifts over seconds on a small VM).
     let gapped = rounds / 10;
-    let mut echo = Echo::start()?;
-    let (mut t, mut f) = (Vec::with_capacity(gapped), Vec::with_capacity(gapped));
-    for i in 0..gapped + 20 {
-        std::thread::sleep(std::time::Duration::from_millis(1));
-        let t0 = Instant::now();
-        c.submit(Ask::Lookup, &batch256[..1])?;
-        c.recv()?;
-        let service = t0.elapsed().as_secs_f64() * 1e6;
-        std::thread::sleep(std::time::Duration::from_millis(1));
-        let floor = echo.ping(i as u64)?;
-        if i >= 20 {
-            t.push(service);
-            f.push(floor);
-        }
-    }
-    drop(echo);
-    t.sort_by(|a, b| a.total_cmp(b));
-    f.sort_by(|a, b| a.total_cmp(b));
-    let (p50, floor) = (percentile(&t, 0.5), percentile(&f, 0.5));
+    let (p50, floor) = after_pause(c, &batch256[..1], gapped, None)?;
     figs.push(Figure {
         zero_ok: false,
         name: "service round trip p50, 1 state, after 1 ms idle".into(),
@@ -153,7 +143,92 @@ fn round_trips(
         unit: "us",
         note: "(the same pause before each ping, taken turn about with the requests above)".into(),
     });
-    Ok((p50, floor))
+    // The same with the caches emptied in each pause, as a busy host's other work
+    // leaves them: what the two paths cost when the memory they touch comes from DRAM.
+    let llc = last_level_cache_bytes();
+    let mut evict = vec![0u8; llc];
+    let (cold, cold_floor) = after_pause(c, &batch256[..1], gapped / 2, Some(&mut evict))?;
+    figs.push(Figure {
+        zero_ok: false,
+        name: "service round trip p50, 1 state, after 1 ms idle, caches evicted".into(),
+        value: cold,
+        unit: "us",
+        note: format!(
+            "({} requests; {} MiB, the last-level cache, written in each pause)",
+            gapped / 2,
+            llc >> 20
+        ),
+    });
+    figs.push(Figure {
+        zero_ok: false,
+        name: "floor: Unix datagram ping-pong p50, after 1 ms idle, caches evicted".into(),
+        value: cold_floor,
+        unit: "us",
+        note: "(the same pause and eviction before each ping, turn about)".into(),
+    });
+    Ok([(p50, floor), (cold, cold_floor)])
+}
+
+/// `n` one-state round trips after a 1 ms pause each, and as many datagram ping-pongs
+/// after the same pause, turn about: the two p50s in microseconds. With `evict`, every
+/// pause then writes one byte in each 64-byte line of it, pushing what the two
+/// processes last touched out of the caches.
+fn after_pause(
+    c: &mut Client,
+    state: &[fulcrum_world::State],
+    n: usize,
+    mut evict: Option<&mut [u8]>,
+) -> Result<(f64, f64)> {
+    let mut pause = || {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+        if let Some(buf) = evict.as_deref_mut() {
+            for line in buf.chunks_mut(64) {
+                line[0] = line[0].wrapping_add(1);
+            }
+            std::hint::black_box(&buf);
+        }
+    };
+    let mut echo = Echo::start()?;
+    let (mut t, mut f) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    for i in 0..n + 20 {
+        pause();
+        let t0 = Instant::now();
+        c.submit(Ask::Lookup, state)?;
+        c.recv()?;
+        let service = t0.elapsed().as_secs_f64() * 1e6;
+        pause();
+        let floor = echo.ping(i as u64)?;
+        if i >= 20 {
+            t.push(service);
+            f.push(floor);
+        }
+    }
+    drop(echo);
+    t.sort_by(|a, b| a.total_cmp(b));
+    f.sort_by(|a, b| a.total_cmp(b));
+    Ok((percentile(&t, 0.5), percentile(&f, 0.5)))
+}
+
+/// The size of this machine's last-level cache (Linux's sysfs; 32 MiB where it does not
+/// say).
+fn last_level_cache_bytes() -> usize {
+    let dir = std::path::Path::new("/sys/devices/system/cpu/cpu0/cache");
+    let parse = |s: &str| -> Option<usize> {
+        let s = s.trim();
+        let (num, mul) = match s.strip_suffix('K') {
+            Some(n) => (n, 1 << 10),
+            None => match s.strip_suffix('M') {
+                Some(n) => (n, 1 << 20),
+                None => (s, 1),
+            },
+        };
+        num.parse::<usize>().ok().map(|v| v * mul)
+    };
+    (0..8)
+        .filter_map(|i| std::fs::read_to_string(dir.join(format!("index{i}/size"))).ok())
+        .filter_map(|s| parse(&s))
+        .max()
+        .unwrap_or(32 << 20)
 }
 
 /// Lookups per second: one client in this process, then two client processes.
