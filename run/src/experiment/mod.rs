@@ -23,8 +23,11 @@
 //! arm's settings under the same directory is refused.
 //!
 //! With `--launcher slurm` the pairs run as a Slurm job array instead ([`launch`],
-//! [`run_task`], [`collect`]: see the `slurm` module); a set of worlds as one array of
-//! its (world, arm, seed) triples ([`launch_set`]).
+//! [`run_task`]: see the `slurm` module); a set of worlds as one array of its (world,
+//! arm, seed) triples ([`launch_set`], in the `set` module, which builds on `slurm`'s
+//! script and tasks). [`collect`] gathers either kind of directory once its tasks have
+//! ended (in the `set` module too: a set's directory is pooled, one world's collected
+//! by `slurm`).
 //!
 //! The statistics are [`crate::stats`]: episode-pooled success over a trailing
 //! window of `--smooth` updates, a grid of 200 intervals over the budget, the sample
@@ -38,11 +41,8 @@ mod set;
 mod slurm;
 mod summary;
 
-pub use set::{prepare_set, run_set, SetDir, SetRequest, SetWorld};
-pub use slurm::{
-    check_options, collect, launch, launch_set, run_task, Collected, Launch, SlurmOptions,
-    TaskOutcome,
-};
+pub use set::{collect, launch_set, prepare_set, run_set, SetDir, SetRequest, SetWorld};
+pub use slurm::{check_options, launch, run_task, Collected, Launch, SlurmOptions, TaskOutcome};
 
 use std::path::{Path, PathBuf};
 

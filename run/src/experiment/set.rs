@@ -22,8 +22,9 @@
 //!
 //! The same command with the same directory resumes, as a single world's experiment
 //! does; another set under the same directory is refused. On Slurm the set is one job
-//! array over every world's pairs ([`super::launch_set`]), and `--collect DIR` pools
-//! the finished pairs as a local run of the set does ([`collect_set`]):
+//! array over every world's pairs ([`launch_set`]), and `--collect DIR` pools
+//! the finished pairs as a local run of the set does ([`collect`], which also takes one
+//! world's experiment directory):
 //!
 //! ```text
 //! DIR/slurm/array-<time>.sbatch  task i = the pair (ARMS[i], SEEDS[i]) of DIRS[i]
@@ -36,7 +37,7 @@ use crate::error::{Context, Result};
 use serde::{Deserialize, Serialize};
 
 use super::report::{p_text, steps_text};
-use super::slurm::Collected;
+use super::slurm::{self, Collected, Launch, SlurmOptions};
 use super::summary::Summary;
 use super::{run_one, ExperimentRequest};
 use crate::error::{bad, BadRequest};
@@ -271,11 +272,22 @@ fn pool(
     Ok(markdown)
 }
 
+/// The summary and plots of the experiment in `dir` from every finished pair, as a
+/// local experiment writes them, and where the other pairs stand. On a set's directory
+/// (`set.toml`), every world's experiment collected and the pairs pooled as
+/// [`run_set`] pools them.
+pub fn collect(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
+    if dir.join("set.toml").exists() {
+        return collect_set(dir, threshold, smooth);
+    }
+    slurm::collect_one(dir, threshold, smooth).map(|(c, _)| c)
+}
+
 /// `fulcrum experiment --collect DIR` on a set's directory: every world's experiment
-/// collected ([`super::slurm::collect_one`]: its summary and plots written), then the
+/// collected ([`slurm::collect_one`]: its summary and plots written), then the
 /// pairs pooled as [`run_set`] pools them; the pairs not finished are named with their
 /// world.
-pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
+fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
     let spec: SetSpec = super::read_toml(&dir.join("set.toml"), "a set file")?;
     if spec.fewest_steps.len() != spec.worlds.len() {
         return bad(format!(
@@ -287,7 +299,7 @@ pub(super) fn collect_set(dir: &Path, threshold: f64, smooth: usize) -> Result<C
     let mut all = Collected::default();
     let mut summaries = Vec::with_capacity(spec.worlds.len());
     for name in &spec.worlds {
-        let (c, s) = super::slurm::collect_one(&dir.join(name), threshold, smooth)
+        let (c, s) = slurm::collect_one(&dir.join(name), threshold, smooth)
             .with_context(|| format!("world {name}"))?;
         all.finished += c.finished;
         all.missing
@@ -502,4 +514,28 @@ fn markdown(s: &SetSummary, smooth: usize) -> String {
         t += "\n";
     }
     t
+}
+
+/// [`super::launch`] for a set of worlds: every world's experiment directory made ready (as
+/// [`run_set`] makes them), then one array of the unfinished (world, arm, seed)
+/// triples of them all, its script and Slurm's logs in the set's directory. `fulcrum
+/// experiment --collect` on the set's directory pools them as the local set does.
+pub fn launch_set(req: &SetRequest, o: &SlurmOptions) -> Result<Launch> {
+    slurm::check_options(o)?;
+    let dir = slurm::absolute(&req.dir.path)?;
+    let mut tasks = Vec::new();
+    let mut cpus = o.cpus.unwrap_or(1);
+    for w in &req.worlds {
+        let p = super::prepare(&w.request)?;
+        let d = slurm::absolute(&p.dir)?;
+        tasks.extend(slurm::unfinished(&p.spec, &p.jobs, &d));
+        cpus = o.cpus.unwrap_or(p.spec.actors);
+    }
+    let title = format!(
+        "{} (world, arm, seed) triples of the set {} ({} worlds), one array task each",
+        tasks.len(),
+        req.description,
+        req.worlds.len()
+    );
+    slurm::write_and_submit(&dir, &title, &req.description, &tasks, o, cpus)
 }

@@ -36,7 +36,6 @@ use crate::lock::DirLock;
 use crate::process::{install_signal_handlers, stopping, utc_stamp};
 
 use super::schedule::{clear_fresh, last_steps, train_command};
-use super::set::SetRequest;
 use super::{job, prepare, read_spec, state, ExperimentRequest, Job, Spec, State};
 
 /// What the array script asks of Slurm.
@@ -75,7 +74,7 @@ pub struct Launch {
 
 /// One array task: a pair of the experiment in `dir`.
 #[derive(Debug, Clone)]
-struct Task {
+pub(super) struct Task {
     /// The experiment directory (absolute).
     dir: PathBuf,
     arm: String,
@@ -98,36 +97,12 @@ pub fn launch(a: &ExperimentRequest, o: &SlurmOptions) -> Result<Launch> {
     write_and_submit(&dir, &title, &prepared.spec.world, &tasks, o, cpus)
 }
 
-/// [`launch`] for a set of worlds: every world's experiment directory made ready (as
-/// [`super::run_set`] makes them), then one array of the unfinished (world, arm, seed)
-/// triples of them all, its script and Slurm's logs in the set's directory. `fulcrum
-/// experiment --collect` on the set's directory pools them as the local set does.
-pub fn launch_set(req: &SetRequest, o: &SlurmOptions) -> Result<Launch> {
-    check_options(o)?;
-    let dir = absolute(&req.dir.path)?;
-    let mut tasks = Vec::new();
-    let mut cpus = o.cpus.unwrap_or(1);
-    for w in &req.worlds {
-        let p = prepare(&w.request)?;
-        let d = absolute(&p.dir)?;
-        tasks.extend(unfinished(&p.spec, &p.jobs, &d));
-        cpus = o.cpus.unwrap_or(p.spec.actors);
-    }
-    let title = format!(
-        "{} (world, arm, seed) triples of the set {} ({} worlds), one array task each",
-        tasks.len(),
-        req.description,
-        req.worlds.len()
-    );
-    write_and_submit(&dir, &title, &req.description, &tasks, o, cpus)
-}
-
-fn absolute(dir: &Path) -> Result<PathBuf> {
+pub(super) fn absolute(dir: &Path) -> Result<PathBuf> {
     Ok(std::path::absolute(dir).with_context(|| format!("cannot resolve {}", dir.display()))?)
 }
 
 /// The pairs of `jobs` that have not finished, as tasks on the experiment in `dir`.
-fn unfinished(spec: &Spec, jobs: &[Job], dir: &Path) -> Vec<Task> {
+pub(super) fn unfinished(spec: &Spec, jobs: &[Job], dir: &Path) -> Vec<Task> {
     jobs.iter()
         .filter(|j| state(&j.dir, spec.steps) != State::Done)
         .map(|j| Task {
@@ -138,7 +113,7 @@ fn unfinished(spec: &Spec, jobs: &[Job], dir: &Path) -> Vec<Task> {
         .collect()
 }
 
-/// The options checked, as [`launch`] and [`launch_set`] check them before anything is
+/// The options checked, as [`launch`] and [`super::launch_set`] check them before anything is
 /// written (a set's caller checks them before it writes the set's files).
 pub fn check_options(o: &SlurmOptions) -> Result<()> {
     if let Some(c) = o.cpus {
@@ -175,7 +150,7 @@ pub fn check_options(o: &SlurmOptions) -> Result<()> {
 
 /// The array script of `tasks` written under `dir/slurm/` and submitted (unless
 /// `o.submit` is false); nothing written when no task is left.
-fn write_and_submit(
+pub(super) fn write_and_submit(
     dir: &Path,
     title: &str,
     name: &str,
@@ -477,18 +452,7 @@ pub struct Collected {
     pub unfinished: Vec<(String, u64)>,
 }
 
-/// The summary and plots of the experiment in `dir` from every finished pair, as a
-/// local experiment writes them, and where the other pairs stand. On a set's directory
-/// (`set.toml`), every world's experiment collected and the pairs pooled as
-/// [`super::run_set`] pools them.
-pub fn collect(dir: &Path, threshold: f64, smooth: usize) -> Result<Collected> {
-    if dir.join("set.toml").exists() {
-        return super::set::collect_set(dir, threshold, smooth);
-    }
-    collect_one(dir, threshold, smooth).map(|(c, _)| c)
-}
-
-/// [`collect`] of one world's experiment, with its summary.
+/// [`super::collect`] of one world's experiment, with its summary.
 pub(super) fn collect_one(
     dir: &Path,
     threshold: f64,
