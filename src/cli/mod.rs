@@ -411,6 +411,29 @@ pub struct BenchArgs {
     /// --listen ADDR` there; `scripts/two-hosts.sh bench`), or one started on 127.0.0.1.
     #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = "", conflicts_with = "scaling")]
     pub remote: Option<String>,
+    /// Only these groups of the suite, in the suite's order (comma-separated), to
+    /// reproduce one section of BENCHMARKS.md without the rest.
+    #[arg(long, value_enum, value_delimiter = ',', value_name = "GROUP", conflicts_with_all = ["scaling", "remote"])]
+    pub only: Vec<BenchGroup>,
+}
+
+/// A group of `fulcrum bench`'s figures.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum BenchGroup {
+    /// Exact empowerment: exp2's matrix, the propagations, the stochastic tables, the
+    /// 10^6-state world.
+    Empowerment,
+    /// A family's layouts never seen: the whole table of each.
+    Layouts,
+    /// The empowerment service: round trips (after idle too), lookups/s, idle CPU,
+    /// the floors.
+    Service,
+    /// World steps, the learner's update, chunk transport, end-to-end training.
+    Training,
+    /// Time to solve exp1-tree, and (full run) generated worlds solved by the defaults.
+    Solve,
+    /// The Python package (needs FULCRUM_PYTHON or `python3` with the package).
+    Python,
 }
 
 /// `fulcrum actor-host`

@@ -14,7 +14,7 @@ use fulcrum_world::family::{load_family, Family};
 use fulcrum_world::{load_world, ObjectSet, State, World};
 use rand::{Rng, SeedableRng};
 
-use crate::util::{fulcrum, is_ready, namespace};
+use crate::util::{fulcrum, is_ready, namespace, run};
 
 /// A running `fulcrum serve`, stopped (SIGINT, then SIGKILL) when dropped.
 struct Serve {
@@ -882,4 +882,63 @@ fn a_family_service_answers_pipelined_requests_for_new_layouts_in_order() {
         got += 1;
     }
     assert_eq!(c.in_flight(), 0);
+}
+
+/// `fulcrum bench --only service` runs the service's group alone: its figures, every
+/// one of them (the names `src/commands/bench/service.rs` gives, listed by hand), and
+/// nothing of the other groups; an unknown group is refused with exit code 2.
+#[test]
+fn bench_only_service_gives_the_service_figures_alone() {
+    let dir = crate::util::TempDir::new("bench-only");
+    let json = dir.join("bench.json");
+    let out = run(&[
+        "bench",
+        "--quick",
+        "--only",
+        "service",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert_eq!(v["only"], serde_json::json!(["service"]));
+    let names: Vec<&str> = v["figures"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| f["name"].as_str().unwrap())
+        .collect();
+    let want = [
+        "service round trip p50, 1 state",
+        "service round trip p99, 1 state",
+        "service round trip p50, 256 states",
+        "service round trip p99, 256 states",
+        "service round trip p50, 1 state, after 1 ms idle",
+        "floor: Unix datagram ping-pong p50, after 1 ms idle",
+        "service round trip p50, 1 state, after 1 ms idle, caches evicted",
+        "floor: Unix datagram ping-pong p50, after 1 ms idle, caches evicted",
+        "service lookups/s, 1 client, batches of 256",
+        "service lookups/s, 2 client processes",
+        "service CPU while idle",
+        "floor: Unix datagram ping-pong p50",
+        "floor: in-process lookups/s",
+        "service round trip after 1 ms idle over its floor",
+        "service round trip after 1 ms idle over its floor, caches evicted",
+    ];
+    assert_eq!(names, want);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.starts_with("fulcrum bench --quick --only service on "),
+        "{stdout}"
+    );
+
+    let bad = run(&["bench", "--only", "services"]);
+    let err = String::from_utf8_lossy(&bad.stderr);
+    assert_eq!(bad.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("invalid value 'services' for '--only <GROUP>'"),
+        "{err}"
+    );
 }

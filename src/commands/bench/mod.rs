@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{ensure, Context, Result};
 use serde_json::json;
 
-use crate::cli::BenchArgs;
+use crate::cli::{BenchArgs, BenchGroup};
 
 mod engine;
 mod python;
@@ -127,23 +127,42 @@ pub fn run(a: BenchArgs) -> Result<()> {
     } else if a.scaling {
         scaling::run(&a.plots, a.max_states, &mut figs)?;
     } else {
-        empowerment_exp2(reps, a.quick, &mut figs)?;
-        empowerment_big(a.quick, &mut figs)?;
-        family_layouts(a.quick, &mut figs)?;
-        service_figures(a.quick, &mut figs)?;
-        training_figures(a.quick, &mut figs)?;
-        chunk_transport(a.quick, &mut figs)?;
-        end_to_end(a.quick, &mut figs)?;
-        family_end_to_end(a.quick, &mut figs)?;
-        time_to_solve(&mut figs)?;
-        if !a.quick {
-            robustness(&mut figs)?;
+        let runs = |g: BenchGroup| a.only.is_empty() || a.only.contains(&g);
+        if runs(BenchGroup::Empowerment) {
+            empowerment_exp2(reps, a.quick, &mut figs)?;
+            empowerment_big(a.quick, &mut figs)?;
         }
-        python::python_figures(a.quick, &mut figs)?;
+        if runs(BenchGroup::Layouts) {
+            family_layouts(a.quick, &mut figs)?;
+        }
+        if runs(BenchGroup::Service) {
+            service_figures(a.quick, &mut figs)?;
+        }
+        if runs(BenchGroup::Training) {
+            training_figures(a.quick, &mut figs)?;
+            chunk_transport(a.quick, &mut figs)?;
+            end_to_end(a.quick, &mut figs)?;
+            family_end_to_end(a.quick, &mut figs)?;
+        }
+        if runs(BenchGroup::Solve) {
+            time_to_solve(&mut figs)?;
+            if !a.quick {
+                robustness(&mut figs)?;
+            }
+        }
+        if runs(BenchGroup::Python) {
+            python::python_figures(a.quick, &mut figs)?;
+        }
     }
 
+    let only: Vec<String> = a
+        .only
+        .iter()
+        .filter_map(clap::ValueEnum::to_possible_value)
+        .map(|v| v.get_name().to_owned())
+        .collect();
     println!(
-        "fulcrum bench{} on {} ({} cores, {} GiB, {}, {})",
+        "fulcrum bench{}{} on {} ({} cores, {} GiB, {}, {})",
         if a.remote.is_some() {
             " --remote"
         } else if a.quick {
@@ -152,6 +171,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
             " --scaling"
         } else {
             ""
+        },
+        if only.is_empty() {
+            String::new()
+        } else {
+            format!(" --only {}", only.join(","))
         },
         m["cpu"].as_str().unwrap_or("?"),
         m["cores"],
@@ -183,6 +207,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             "machine": m,
             "quick": a.quick,
             "scaling": a.scaling,
+            "only": only,
             "figures": figs.iter().map(|f| json!({"name": f.name, "value": f.value, "unit": f.unit, "note": f.note})).collect::<Vec<_>>(),
         });
         write_atomic(path, serde_json::to_string_pretty(&v)?.as_bytes())
