@@ -886,7 +886,8 @@ fn a_family_service_answers_pipelined_requests_for_new_layouts_in_order() {
 
 /// `fulcrum bench --only service` runs the service's group alone: its figures, every
 /// one of them (the names `src/commands/bench/service.rs` gives, listed by hand), and
-/// nothing of the other groups; an unknown group is refused with exit code 2.
+/// nothing of the other groups; an unknown group, or the Python group without the
+/// package, is refused with exit code 2.
 #[test]
 fn bench_only_service_gives_the_service_figures_alone() {
     let dir = crate::util::TempDir::new("bench-only");
@@ -939,6 +940,20 @@ fn bench_only_service_gives_the_service_figures_alone() {
     assert_eq!(bad.status.code(), Some(2), "{err}");
     assert!(
         err.contains("invalid value 'services' for '--only <GROUP>'"),
+        "{err}"
+    );
+
+    // The Python figures asked for by name, with an interpreter that cannot import the
+    // package: one sentence and exit code 2, not an empty table.
+    let none = fulcrum()
+        .args(["bench", "--quick", "--only", "python"])
+        .env("FULCRUM_PYTHON", "/bin/false")
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&none.stderr);
+    assert_eq!(none.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no Python figures: '/bin/false' cannot import fulcrum"),
         "{err}"
     );
 }

@@ -151,7 +151,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
             }
         }
         if runs(BenchGroup::Python) {
-            python::python_figures(a.quick, &mut figs)?;
+            python::python_figures(a.quick, !a.only.is_empty(), &mut figs)?;
         }
     }
 

@@ -4,7 +4,8 @@
 //! when `minigrid` is installed too.
 //!
 //! The interpreter is `$FULCRUM_PYTHON`, else `python3`. Without the package the suite
-//! says so on stderr and goes on: the figures are optional, the rest is not.
+//! says so on stderr and goes on: the figures are optional, the rest is not; but
+//! `--only python` without it is bad input (exit code 2).
 
 use std::process::Command;
 
@@ -12,17 +13,22 @@ use anyhow::{ensure, Context, Result};
 
 use super::Figure;
 
-/// Adds the Python figures to `figs`, or says why there are none.
-pub(super) fn python_figures(quick: bool, figs: &mut Vec<Figure>) -> Result<()> {
+/// Adds the Python figures to `figs`, or says why there are none: on stderr, or as the
+/// error of bad input where they were asked for by name (`required`: `--only python`).
+pub(super) fn python_figures(quick: bool, required: bool, figs: &mut Vec<Figure>) -> Result<()> {
     let python = std::env::var("FULCRUM_PYTHON").unwrap_or_else(|_| "python3".into());
     let found = Command::new(&python)
         .args(["-c", "import fulcrum.bench"])
         .output()
         .is_ok_and(|o| o.status.success());
     if !found {
-        eprintln!(
-            "fulcrum bench: no Python figures: '{python}' cannot import fulcrum (pip install ./python, or set FULCRUM_PYTHON to an interpreter that can)"
+        let why = format!(
+            "no Python figures: '{python}' cannot import fulcrum (pip install ./python, or set FULCRUM_PYTHON to an interpreter that can)"
         );
+        if required {
+            return crate::commands::bad(why);
+        }
+        eprintln!("fulcrum bench: {why}");
         return Ok(());
     }
     let mut cmd = Command::new(&python);
