@@ -3,6 +3,11 @@
 //!
 //! Figures are medians of repeated runs in one process. Nothing here asserts a speed:
 //! the command fails only when a benchmark breaks (an error, a wrong count, a zero).
+//!
+//! The suite runs in groups, in this order ([`BenchGroup`], `--only` picks some):
+//! `empowerment` and `layouts` (`engine`), `service` (`service`), `training` and
+//! `solve` (`training`), `python` (`python`); `--scaling` (`scaling`) and `--remote`
+//! (`remote`) are runs of their own.
 
 use std::time::Instant;
 
