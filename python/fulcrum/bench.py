@@ -30,6 +30,8 @@ import fulcrum
 from fulcrum.wrappers import EmpowermentReward
 
 NUM_ENVS = 64
+# The training layouts of the family row (`make_vec("toolbox", layouts=...)`).
+FAMILY_LAYOUTS = 16
 
 
 def _rate(env, actions: np.ndarray) -> float:
@@ -66,9 +68,9 @@ def run(quick: bool = False) -> dict:
     default = EmpowermentReward(fulcrum.make_vec("exp1-tree", num_envs=NUM_ENVS, seed=0))
     n_actions = plain.single_action_space.n
     actions = rng.integers(0, n_actions, size=(steps, NUM_ENVS), dtype=np.int64)
-    fam_plain = fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=16)
+    fam_plain = fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=FAMILY_LAYOUTS)
     fam_default = EmpowermentReward(
-        fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=16)
+        fulcrum.make_vec("toolbox", num_envs=NUM_ENVS, seed=0, layouts=FAMILY_LAYOUTS)
     )
     fam_actions = rng.integers(
         0, fam_plain.single_action_space.n, size=(steps, NUM_ENVS), dtype=np.int64
@@ -99,8 +101,9 @@ def run(quick: bool = False) -> dict:
         "default_form": default.settings.split(":")[0],
         "default_steps_per_s": statistics.median(d_rates),
         "default_overhead_percent": (statistics.median(d_ratios) - 1.0) * 100.0,
-        # The default form on a family's 16 layouts, against the family unwrapped.
-        "family": "toolbox, 16 layouts",
+        # The default form on a family's layouts, against the family unwrapped.
+        "family": f"toolbox, {FAMILY_LAYOUTS} layouts",
+        "family_layouts": FAMILY_LAYOUTS,
         "family_steps_per_s": statistics.median(fp_rates),
         "family_default_steps_per_s": statistics.median(fd_rates),
         "family_overhead_percent": (statistics.median(f_ratios) - 1.0) * 100.0,

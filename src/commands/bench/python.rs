@@ -61,7 +61,8 @@ pub(super) fn python_figures(quick: bool, required: bool, figs: &mut Vec<Figure>
         need("default_steps_per_s")?,
         need("default_overhead_percent")?,
     );
-    let (fam_plain, fam, fam_over) = (
+    let (layouts, fam_plain, fam, fam_over) = (
+        need("family_layouts")?,
         need("family_steps_per_s")?,
         need("family_default_steps_per_s")?,
         need("family_overhead_percent")?,
@@ -98,7 +99,7 @@ pub(super) fn python_figures(quick: bool, required: bool, figs: &mut Vec<Figure>
         value: fam,
         unit: "steps/s",
         note: format!(
-            "(16 layouts x {n}, a table per layout: +{fam_over:.1}% per step over the family's {fam_plain:.0} unwrapped)"
+            "({layouts} layouts x {n}, a table per layout: +{fam_over:.1}% per step over the family's {fam_plain:.0} unwrapped)"
         ),
     });
     if let (Some(mg), Some(ratio)) = (get("minigrid_steps_per_s"), get("ratio_to_minigrid")) {
